@@ -1,0 +1,64 @@
+"""Errors raised at the boundary of torquesim (files, CLI, constructors).
+
+Every message names the offending field and the allowed range, so the CLI can print it as a
+single line and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import math
+
+
+class ModelError(ValueError):
+    """An invalid model, parameter or input.
+
+    Parameters
+    ----------
+    field : str
+        Dotted name of the offending field (``"flexor.se_stiffness"``), or ``""``.
+    message : str
+        What is wrong and what is allowed.
+    """
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        self.reason = message
+        super().__init__(f"{field}: {message}" if field else message)
+
+    def under(self, prefix: str) -> ModelError:
+        """The same error with ``prefix.`` put in front of the field name."""
+        return ModelError(f"{prefix}.{self.field}" if self.field else prefix, self.reason)
+
+
+class SimulationError(RuntimeError):
+    """A run that could not be completed (non-finite state, divergence)."""
+
+
+def check_range(
+    field: str,
+    value: float,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+    unit: str = "",
+) -> float:
+    """Return ``float(value)`` or raise :class:`ModelError` naming ``field`` and the range.
+
+    The interval is ``[low, high]``; ``low_open``/``high_open`` exclude an end.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ModelError(field, f"must be a number, got {value!r}")
+    v = float(value)
+    lo_ok = v > low if low_open else v >= low
+    hi_ok = v < high if high_open else v <= high
+    if not math.isfinite(v) or not (lo_ok and hi_ok):
+        interval = (
+            ("(" if low_open or low == -math.inf else "[")
+            + f"{low:g}, {high:g}"
+            + (")" if high_open or high == math.inf else "]")
+        )
+        u = f" {unit}" if unit else ""
+        raise ModelError(field, f"{value!r} is out of range; allowed {interval}{u}")
+    return v

@@ -1,0 +1,125 @@
+"""Parametric activation profiles: a chain of quintic ramps (MODEL.md §3).
+
+One ramp from level a_prev to a_i, starting at t_on and lasting r:
+
+    a(t) = a_prev + (a_i − a_prev)·s³(6s² − 15s + 10),   s = (t − t_on)/r ∈ [0, 1]
+
+This is the minimum-jerk (C², zero velocity and acceleration at both ends) transition.
+A profile is an initial level a_0 and n ramps, each given by (delay after the previous ramp
+ends, duration, new level).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..errors import ModelError, check_range
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """One activation ramp.
+
+    Attributes
+    ----------
+    delay : float
+        Time from the end of the previous ramp (or t = 0) to this ramp's start, s.
+        Bounds [0, inf).
+    duration : float
+        Ramp duration r, s. Bounds (0, inf).
+    level : float
+        Activation reached at the end of the ramp. Bounds [0, 1].
+    """
+
+    delay: float
+    duration: float
+    level: float
+
+    def __post_init__(self) -> None:
+        check_range("delay", self.delay, 0.0, unit="s")
+        check_range("duration", self.duration, 0.0, low_open=True, unit="s")
+        check_range("level", self.level, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class ActivationProfile:
+    """Activation a(t) ∈ [0, 1] of one unit.
+
+    Attributes
+    ----------
+    initial_level : float or None
+        a_0. ``None`` means "from static equilibrium" (allowed for the flexor only, where it is
+        the default). Bounds [0, 1].
+    ramps : tuple of Ramp
+        The ramps in time order. The default profile has 3 ramps, i.e. 9 parameters.
+    """
+
+    initial_level: float | None
+    ramps: tuple[Ramp, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.initial_level is not None:
+            check_range("initial_level", self.initial_level, 0.0, 1.0)
+        object.__setattr__(self, "ramps", tuple(self.ramps))
+        for i, ramp in enumerate(self.ramps):
+            if not isinstance(ramp, Ramp):
+                raise ModelError(f"ramps[{i}]", "must be a Ramp(delay, duration, level)")
+
+    @property
+    def parameter_count(self) -> int:
+        return 3 * len(self.ramps)
+
+    def ramp_times(self) -> list[tuple[float, float]]:
+        """(start, end) of every ramp, s: ramp i starts at Σ_{j<i}(delay_j + r_j) + delay_i."""
+        t = 0.0
+        out = []
+        for ramp in self.ramps:
+            start = t + ramp.delay
+            t = start + ramp.duration
+            out.append((start, t))
+        return out
+
+    def to_array(self, initial_level: float | None = None) -> np.ndarray:
+        """Pack as [a_0, n, t_on_1, r_1, a_1, …] for :func:`activation`.
+
+        ``initial_level`` supplies a_0 when the profile's own is ``None``.
+        """
+        a0 = self.initial_level if self.initial_level is not None else initial_level
+        if a0 is None:
+            raise ModelError("initial_level", "is 'equilibrium' but no level was supplied")
+        out = [float(a0), float(len(self.ramps))]
+        for ramp, (start, _) in zip(self.ramps, self.ramp_times(), strict=True):
+            out += [start, ramp.duration, ramp.level]
+        return np.array(out)
+
+    def __call__(self, t, initial_level: float | None = None) -> np.ndarray:
+        """a(t) at the times ``t`` (s), as an array."""
+        packed = self.to_array(initial_level)
+        t = np.asarray(t, dtype=float)
+        return np.array([activation(float(ti), packed) for ti in t.ravel()]).reshape(t.shape)
+
+
+@njit(cache=True)
+def quintic_ramp(s):
+    """Minimum-jerk blend s³(6s² − 15s + 10) for s ∈ [0, 1]."""
+    return s * s * s * (s * (6.0 * s - 15.0) + 10.0)
+
+
+@njit(cache=True)
+def activation(t, profile):
+    """a(t) of a packed profile ``[a_0, n, (t_on, r, level) × n]`` (see module docstring)."""
+    level = profile[0]
+    n = int(profile[1])
+    for i in range(n):
+        t_on = profile[2 + 3 * i]
+        duration = profile[3 + 3 * i]
+        target = profile[4 + 3 * i]
+        if t <= t_on:
+            return level
+        if t < t_on + duration:
+            return level + (target - level) * quintic_ramp((t - t_on) / duration)
+        level = target
+    return level

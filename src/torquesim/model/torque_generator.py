@@ -1,0 +1,310 @@
+"""Rotational Hill-type torque generator unit (MODEL.md §2).
+
+A unit is a contractile element (CE) in series with a linear torsional series elastic element
+(SE). The CE torque is
+
+    T = a(t) · d(ω_cc) · T_ω(ω_cc) · T_θ(θ_cc)                    (abstract Eq. 3)
+
+with the tetanic torque/angular-velocity curve T_ω of Yeadon, King & Wilson (2006), the
+differential activation d of Yeadon et al. (2006) in the form of Forrester et al. (2011) and a
+quadratic (King-type) torque/angle curve T_θ. ω_cc > 0 is concentric (shortening).
+
+The compiled functions take a unit's parameters as a plain float array laid out by the index
+constants below (see :meth:`TorqueGeneratorUnit.to_array`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+from numba import njit
+
+from ..errors import ModelError, check_range
+
+# Layout of the packed unit parameter array.
+T0, T_MAX, OMEGA_MAX, OMEGA_C, SLOPE_RATIO, A_MIN, OMEGA_R, OMEGA_1 = range(8)
+THETA_OPT, K2, K_SE = 8, 9, 10
+# Derived constants (Yeadon et al. 2006), filled by to_array.
+T_C, C_CONC, OMEGA_E, E_ECC, H_ISOMETRIC, H_ECC_LIMIT = 11, 12, 13, 14, 15, 16
+UNIT_ARRAY_SIZE = 17
+
+#: The torque/angle curve never falls below this fraction of its peak (MODEL.md §2.3).
+TORQUE_ANGLE_FLOOR = 0.01
+#: Activation used in the CE equation is max(a, ACTIVATION_FLOOR) (MODEL.md §2.5).
+ACTIVATION_FLOOR = 0.01
+#: Real-axis stability limit of classical RK4: |λ|·h ≤ 2.785 (the boundary of its region).
+RK4_STABILITY_LIMIT = 2.785293563405282
+
+
+@dataclass(frozen=True)
+class TorqueGeneratorUnit:
+    """Parameters of one torque generator unit (flexor or extensor).
+
+    Attributes
+    ----------
+    isometric_torque : float
+        T0, tetanic torque at zero CE velocity. N·m. Bounds (0, inf).
+    eccentric_torque_max : float
+        T_max, eccentric plateau of T_ω. N·m. Bounds (T0, inf).
+    max_velocity : float
+        ω_max, CE velocity at which T_ω reaches zero. rad/s. Bounds (0, inf).
+    velocity_constant : float
+        ω_c, Hill hyperbola constant of the concentric branch. rad/s. Bounds (0, inf).
+    eccentric_slope_ratio : float
+        k, ratio of eccentric to concentric slope of T_ω at ω = 0. Default 4.3. Bounds (0, inf).
+    min_differential_activation : float
+        a_min, lower asymptote of d(ω). Bounds [0, 1].
+    differential_activation_rate : float
+        ω_r, width of the d(ω) sigmoid. rad/s. Bounds (0, inf).
+    differential_activation_midpoint : float
+        ω_1, centre of the d(ω) sigmoid. rad/s. Bounds (-ω_max, ω_max).
+    optimal_angle : float
+        θ_opt, CE angle (joint-equivalent) of peak torque. rad. Bounds [-π, 2π].
+    angle_curvature : float
+        k2, curvature of the quadratic torque/angle curve. rad⁻². Bounds [0, inf).
+    se_stiffness : float
+        k, torsional stiffness of the series elastic element. N·m/rad. Bounds (0, inf).
+    """
+
+    isometric_torque: float
+    eccentric_torque_max: float
+    max_velocity: float
+    velocity_constant: float
+    min_differential_activation: float
+    differential_activation_rate: float
+    differential_activation_midpoint: float
+    optimal_angle: float
+    angle_curvature: float
+    se_stiffness: float
+    eccentric_slope_ratio: float = 4.3
+
+    def __post_init__(self) -> None:
+        pos = dict(low=0.0, low_open=True)
+        t0 = check_range("isometric_torque", self.isometric_torque, **pos, unit="N·m")
+        check_range("eccentric_torque_max", self.eccentric_torque_max, t0, low_open=True,
+                    unit="N·m (must exceed isometric_torque)")
+        wmax = check_range("max_velocity", self.max_velocity, **pos, unit="rad/s")
+        check_range("velocity_constant", self.velocity_constant, **pos, unit="rad/s")
+        check_range("eccentric_slope_ratio", self.eccentric_slope_ratio, **pos)
+        check_range("min_differential_activation", self.min_differential_activation, 0.0, 1.0)
+        check_range("differential_activation_rate", self.differential_activation_rate, **pos,
+                    unit="rad/s")
+        check_range("differential_activation_midpoint", self.differential_activation_midpoint,
+                    -wmax, wmax, low_open=True, high_open=True, unit="rad/s")
+        check_range("optimal_angle", self.optimal_angle, -math.pi, 2 * math.pi, unit="rad")
+        check_range("angle_curvature", self.angle_curvature, 0.0, unit="rad^-2")
+        check_range("se_stiffness", self.se_stiffness, **pos, unit="N·m/rad")
+        _check_monotone(self.to_array())
+
+    @classmethod
+    def flexor_default(cls) -> TorqueGeneratorUnit:
+        """Elbow flexor defaults of MODEL.md §2.4 (Yeadon et al. 2006 form; Kentel et al. 2011
+        curves; T0 consistent with Lategan & Krüger 2003)."""
+        return cls(isometric_torque=75.0, eccentric_torque_max=101.25, max_velocity=18.0,
+                   velocity_constant=5.5, min_differential_activation=0.90,
+                   differential_activation_rate=0.5, differential_activation_midpoint=0.0,
+                   optimal_angle=1.66, angle_curvature=0.23, se_stiffness=600.0)
+
+    @classmethod
+    def extensor_default(cls) -> TorqueGeneratorUnit:
+        """Elbow extensor defaults of MODEL.md §2.4."""
+        return cls(isometric_torque=60.0, eccentric_torque_max=78.0, max_velocity=18.0,
+                   velocity_constant=5.5, min_differential_activation=0.90,
+                   differential_activation_rate=0.5, differential_activation_midpoint=0.0,
+                   optimal_angle=1.57, angle_curvature=0.15, se_stiffness=300.0)
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    def to_array(self) -> np.ndarray:
+        """Pack into the float array read by the compiled functions (derived constants too)."""
+        p = np.zeros(UNIT_ARRAY_SIZE)
+        p[T0] = self.isometric_torque
+        p[T_MAX] = self.eccentric_torque_max
+        p[OMEGA_MAX] = self.max_velocity
+        p[OMEGA_C] = self.velocity_constant
+        p[SLOPE_RATIO] = self.eccentric_slope_ratio
+        p[A_MIN] = self.min_differential_activation
+        p[OMEGA_R] = self.differential_activation_rate
+        p[OMEGA_1] = self.differential_activation_midpoint
+        p[THETA_OPT] = self.optimal_angle
+        p[K2] = self.angle_curvature
+        p[K_SE] = self.se_stiffness
+        t0, tmax, wmax, wc, k = p[T0], p[T_MAX], p[OMEGA_MAX], p[OMEGA_C], p[SLOPE_RATIO]
+        p[T_C] = t0 * wc / wmax
+        p[C_CONC] = p[T_C] * (wmax + wc)
+        p[OMEGA_E] = (tmax - t0) / (k * t0) * wmax * wc / (wmax + wc)
+        p[E_ECC] = -(tmax - t0) * p[OMEGA_E]
+        p[H_ISOMETRIC] = ce_torque_velocity(0.0, p)
+        p[H_ECC_LIMIT] = ce_torque_velocity(-wmax, p)
+        return p
+
+
+def _check_monotone(p: np.ndarray) -> None:
+    """Reject a parameter set for which h = d·T_ω is not strictly decreasing on [-ω_max, ω_max].
+
+    h is checked on a dense grid (4001 points per branch) together with the sign of its
+    analytical derivative; the CE velocity is then the unique root of h(ω) = target.
+    """
+    wmax = p[OMEGA_MAX]
+    grid = np.concatenate([np.linspace(-wmax, 0.0, 4001), np.linspace(0.0, wmax, 4001)[1:]])
+    values = np.array([ce_torque_velocity(w, p) for w in grid])
+    slopes = np.array([ce_torque_velocity_slope(w, p) for w in grid[:-1]])
+    if not (np.all(np.diff(values) < 0.0) and np.all(slopes < 0.0)):
+        bad = grid[:-1][(np.diff(values) >= 0.0) | (slopes >= 0.0)][0]
+        raise ModelError(
+            "differential_activation_rate",
+            f"d(ω)·T_ω(ω) is not strictly decreasing near ω = {bad:.3f} rad/s, so the CE "
+            "velocity is not unique; allowed: parameter sets with a decreasing h "
+            "(raise min_differential_activation or differential_activation_rate)",
+        )
+
+
+@njit(cache=True)
+def tetanic_torque_velocity(omega, p):
+    """T_ω(ω): tetanic torque/angular-velocity curve, N·m (Yeadon, King & Wilson 2006).
+
+    Concentric (0 ≤ ω < ω_max): C/(ω_c + ω) − T_c; zero for ω ≥ ω_max;
+    eccentric (ω < 0): E/(ω_e − ω) + T_max. Continuous at 0 (value T0), with a slope jump of
+    factor ``eccentric_slope_ratio`` there.
+    """
+    if omega >= p[OMEGA_MAX]:
+        return 0.0
+    if omega >= 0.0:
+        return p[C_CONC] / (p[OMEGA_C] + omega) - p[T_C]
+    return p[E_ECC] / (p[OMEGA_E] - omega) + p[T_MAX]
+
+
+@njit(cache=True)
+def tetanic_torque_velocity_slope(omega, p):
+    """dT_ω/dω, N·m·s/rad; at the kink ω = 0 the concentric (right) slope."""
+    if omega >= p[OMEGA_MAX]:
+        return 0.0
+    if omega >= 0.0:
+        x = p[OMEGA_C] + omega
+        return -p[C_CONC] / (x * x)
+    x = p[OMEGA_E] - omega
+    return p[E_ECC] / (x * x)
+
+
+@njit(cache=True)
+def differential_activation(omega, p):
+    """d(ω) = a_min + (1 − a_min)/(1 + exp(−(ω − ω_1)/ω_r)), dimensionless.
+
+    Yeadon et al. (2006), form of Forrester et al. (2011).
+    """
+    return p[A_MIN] + (1.0 - p[A_MIN]) / (1.0 + math.exp(-(omega - p[OMEGA_1]) / p[OMEGA_R]))
+
+
+@njit(cache=True)
+def differential_activation_slope(omega, p):
+    """dd/dω, s/rad."""
+    s = 1.0 / (1.0 + math.exp(-(omega - p[OMEGA_1]) / p[OMEGA_R]))
+    return (1.0 - p[A_MIN]) * s * (1.0 - s) / p[OMEGA_R]
+
+
+@njit(cache=True)
+def torque_angle(theta_cc, p):
+    """T_θ(θ_cc) = max(1 − k2·(θ_cc − θ_opt)², 0.01), dimensionless (King-type quadratic)."""
+    x = theta_cc - p[THETA_OPT]
+    return max(1.0 - p[K2] * x * x, TORQUE_ANGLE_FLOOR)
+
+
+@njit(cache=True)
+def ce_torque_velocity(omega, p):
+    """h(ω) = d(ω)·T_ω(ω), N·m: the CE torque at full activation and optimal angle."""
+    return differential_activation(omega, p) * tetanic_torque_velocity(omega, p)
+
+
+@njit(cache=True)
+def ce_torque_velocity_slope(omega, p):
+    """h'(ω) = d'·T_ω + d·T_ω', N·m·s/rad (concentric slope at the kink ω = 0)."""
+    return (differential_activation_slope(omega, p) * tetanic_torque_velocity(omega, p)
+            + differential_activation(omega, p) * tetanic_torque_velocity_slope(omega, p))
+
+
+@njit(cache=True)
+def _inverse_tetanic(y, p, concentric):
+    """Closed-form inverse of T_ω on one branch (start value for Newton)."""
+    if concentric:
+        return p[C_CONC] / (y + p[T_C]) - p[OMEGA_C]
+    if y >= p[T_MAX]:
+        return -p[OMEGA_MAX]
+    return p[OMEGA_E] - p[E_ECC] / (y - p[T_MAX])
+
+
+@njit(cache=True)
+def ce_velocity(target, p):
+    """CE angular velocity ω_cc solving h(ω_cc) = target (MODEL.md §2.5), rad/s.
+
+    ``target = T / (max(a, 0.01)·T_θ(θ_cc))`` in N·m. Clamps: target ≤ 0 (slack SE) gives
+    +ω_max; target ≥ h(−ω_max) gives −ω_max. Otherwise the unique root, found by Newton's
+    method safeguarded by bisection on the branch (concentric or eccentric) that holds it, so
+    the kink of T_ω at ω = 0 never lies inside the bracket.
+    """
+    wmax = p[OMEGA_MAX]
+    if target <= 0.0:
+        return wmax
+    if target >= p[H_ECC_LIMIT]:
+        return -wmax
+    if target == p[H_ISOMETRIC]:
+        return 0.0
+    concentric = target < p[H_ISOMETRIC]
+    if concentric:
+        lo, hi = 0.0, wmax
+    else:
+        lo, hi = -wmax, 0.0
+    # Start: invert T_ω with d frozen, twice (d varies slowly).
+    w = _inverse_tetanic(target / differential_activation(0.0, p), p, concentric)
+    w = min(max(w, lo), hi)
+    w = _inverse_tetanic(target / differential_activation(w, p), p, concentric)
+    w = min(max(w, lo), hi)
+    for _ in range(100):
+        f = ce_torque_velocity(w, p) - target
+        if f == 0.0:
+            return w
+        if f > 0.0:  # h decreasing: root lies to the right
+            lo = w
+        else:
+            hi = w
+        slope = ce_torque_velocity_slope(w, p)
+        w_new = w - f / slope if slope < 0.0 else 0.5 * (lo + hi)
+        if not (lo < w_new < hi):
+            w_new = 0.5 * (lo + hi)
+        if abs(w_new - w) <= 1e-14 * (1.0 + abs(w)):
+            return w_new
+        w = w_new
+    return w
+
+
+@njit(cache=True)
+def unit_torque(stretch, p):
+    """SE torque k·max(s, 0), N·m: a slack SE cannot push."""
+    return p[K_SE] * max(stretch, 0.0)
+
+
+@njit(cache=True)
+def unit_ce_velocity(stretch, theta_cc, activation, p):
+    """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``."""
+    target = unit_torque(stretch, p) / (max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p))
+    return ce_velocity(target, p)
+
+
+@njit(cache=True)
+def unit_time_constant(omega_cc, theta_cc, activation, p):
+    """Time constant τ = a·T_θ·|h'(ω_cc)|/k of the unit's CE equation, s (MODEL.md §5).
+
+    Returns +inf where the CE velocity is clamped (slack SE or ±ω_max), where it does not
+    respond to the state. Explicit RK4 is stable for step/τ ≤ 2.785.
+    """
+    wmax = p[OMEGA_MAX]
+    if omega_cc >= wmax or omega_cc <= -wmax:
+        return np.inf
+    slope = abs(ce_torque_velocity_slope(omega_cc, p))
+    return max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p) * slope / p[K_SE]

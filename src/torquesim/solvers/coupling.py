@@ -1,0 +1,83 @@
+"""How the partitioned technique exchanges data between the body and the muscle parts."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ModelError, check_range
+from . import fixed_step as fs
+
+ORDERS = {"jacobi": fs.JACOBI, "body-first": fs.BODY_FIRST, "muscles-first": fs.MUSCLES_FIRST,
+          "every-stage": fs.EVERY_STAGE}
+PREDICTORS = {"hold": fs.HOLD, "linear": fs.LINEAR}
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """The exchange between the two parts of the partitioned technique (MODEL.md §4).
+
+    Attributes
+    ----------
+    order : str
+        ``"jacobi"`` (default): both parts start from the step-start values;
+        ``"body-first"`` / ``"muscles-first"``: sequential (Gauss-Seidel), the second part sees
+        the first part's new values (linearly interpolated over the step);
+        ``"every-stage"``: exchange at every RK4 stage, which is monolithic RK4 written through
+        the two parts (a check, not a partitioned scheme).
+    predictor : str
+        What a part sees of a signal not yet advanced in this step: ``"hold"`` (default,
+        zero-order hold of the step-start value) or ``"linear"`` (extrapolated from the last
+        step's change).
+    muscle_substeps : int
+        m RK4 sub-steps of the muscle part per body step (sub-cycling). Default 1. Bounds [1, 1000].
+    iterations : int
+        Maximum sweeps of the exchange within a step (waveform relaxation). Default 1.
+        Bounds [1, 100].
+    tolerance : float
+        Stop sweeping when the end-of-step state changes by less than this (rad); 0 means
+        always make ``iterations`` sweeps. Default 0. Bounds [0, inf).
+    """
+
+    order: str = "jacobi"
+    predictor: str = "hold"
+    muscle_substeps: int = 1
+    iterations: int = 1
+    tolerance: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.order not in ORDERS:
+            raise ModelError("order", f"{self.order!r} is not one of {', '.join(ORDERS)}")
+        if self.predictor not in PREDICTORS:
+            raise ModelError("predictor",
+                             f"{self.predictor!r} is not one of {', '.join(PREDICTORS)}")
+        for name, high in (("muscle_substeps", 1000), ("iterations", 100)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ModelError(name, f"must be a whole number in [1, {high}], got {value!r}")
+            check_range(name, value, 1, high)
+        check_range("tolerance", self.tolerance, 0.0, unit="rad")
+
+    def to_array(self) -> np.ndarray:
+        a = np.zeros(fs.COUPLING_SIZE)
+        a[fs.ORDER] = ORDERS[self.order]
+        a[fs.PREDICTOR] = PREDICTORS[self.predictor]
+        a[fs.MUSCLE_SUBSTEPS] = self.muscle_substeps
+        a[fs.ITERATIONS] = self.iterations
+        a[fs.TOLERANCE] = self.tolerance
+        return a
+
+    def label(self) -> str:
+        """Short name, e.g. ``partitioned`` or ``partitioned[body-first,linear,m=4]``."""
+        parts = []
+        if self.order != "jacobi":
+            parts.append(self.order)
+        if self.predictor != "hold":
+            parts.append(self.predictor)
+        if self.muscle_substeps != 1:
+            parts.append(f"m={self.muscle_substeps}")
+        if self.iterations != 1:
+            parts.append(f"iter={self.iterations}" + (f",tol={self.tolerance:g}"
+                                                       if self.tolerance else ""))
+        return "partitioned" + (f"[{','.join(parts)}]" if parts else "")

@@ -1,0 +1,250 @@
+"""Fixed-step classical RK4 solvers, compiled: monolithic and partitioned (MODEL.md §4).
+
+Both loops take plain float arrays, write the state at every step into ``out`` and return a
+``stats`` array (indices below). No Python work happens per step.
+
+Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
+is evaluated (closed form) and the largest step/τ is recorded with its time and unit; explicit
+RK4 is stable for step/τ ≤ 2.785 (:data:`~torquesim.model.torque_generator.RK4_STABILITY_LIMIT`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..model.activation import activation
+from ..model.torque_generator import unit_time_constant
+from .rates import body_rates, elbow_rates, muscle_rates, net_muscle_torque
+
+# Indices of the stats array returned by the loops.
+STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS = range(8)
+STATS_SIZE = 8
+# Status codes.
+OK, NON_FINITE, DIVERGED = 0, 1, 2
+#: |ω| above this (rad/s) counts as divergence: no elbow moves at 1000 rad/s.
+DIVERGENCE_OMEGA = 1.0e3
+
+# Coupling scheme array layout (see torquesim.solvers.coupling.Coupling).
+ORDER, PREDICTOR, MUSCLE_SUBSTEPS, ITERATIONS, TOLERANCE = range(5)
+COUPLING_SIZE = 5
+JACOBI, BODY_FIRST, MUSCLES_FIRST, EVERY_STAGE = 0, 1, 2, 3
+HOLD, LINEAR = 0, 1
+
+
+@njit(cache=True)
+def _check_state(theta, omega, theta_cc_f, theta_cc_e):
+    if not (math.isfinite(theta) and math.isfinite(omega) and math.isfinite(theta_cc_f)
+            and math.isfinite(theta_cc_e)):
+        return NON_FINITE
+    if abs(omega) > DIVERGENCE_OMEGA:
+        return DIVERGED
+    return OK
+
+
+@njit(cache=True)
+def _record_stiffness(stats, t, h_muscle, theta_cc_f, theta_cc_e, rate_f, rate_e,
+                      pf, pe, af, ae):
+    """Update the largest step/τ seen (the stability guard); rate_* are dθ_cc/dt."""
+    tau_f = unit_time_constant(rate_f, theta_cc_f, activation(t, af), pf)
+    tau_e = unit_time_constant(-rate_e, theta_cc_e, activation(t, ae), pe)
+    ratio_f = h_muscle / tau_f
+    ratio_e = h_muscle / tau_e
+    if ratio_f > stats[WORST_RATIO]:
+        stats[WORST_RATIO] = ratio_f
+        stats[WORST_TIME] = t
+        stats[WORST_UNIT] = 0.0
+    if ratio_e > stats[WORST_RATIO]:
+        stats[WORST_RATIO] = ratio_e
+        stats[WORST_TIME] = t
+        stats[WORST_UNIT] = 1.0
+
+
+@njit(cache=True)
+def rk4_monolithic(y0, h, n_steps, b, pf, pe, af, ae, out, stats):
+    """Classical RK4 on the whole state y = (θ, ω, θ_cc,F, θ_cc,E) (technique 2).
+
+    Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, 4).
+    """
+    th, om, tf, te = y0[0], y0[1], y0[2], y0[3]
+    out[0, 0], out[0, 1], out[0, 2], out[0, 3] = th, om, tf, te
+    half = 0.5 * h
+    for n in range(n_steps):
+        t = n * h
+        k1 = elbow_rates(t, th, om, tf, te, b, pf, pe, af, ae)
+        _record_stiffness(stats, t, h, tf, te, k1[2], k1[3], pf, pe, af, ae)
+        k2 = elbow_rates(t + half, th + half * k1[0], om + half * k1[1], tf + half * k1[2],
+                         te + half * k1[3], b, pf, pe, af, ae)
+        k3 = elbow_rates(t + half, th + half * k2[0], om + half * k2[1], tf + half * k2[2],
+                         te + half * k2[3], b, pf, pe, af, ae)
+        k4 = elbow_rates(t + h, th + h * k3[0], om + h * k3[1], tf + h * k3[2],
+                         te + h * k3[3], b, pf, pe, af, ae)
+        w = h / 6.0
+        th += w * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])
+        om += w * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1])
+        tf += w * (k1[2] + 2.0 * (k2[2] + k3[2]) + k4[2])
+        te += w * (k1[3] + 2.0 * (k2[3] + k3[3]) + k4[3])
+        stats[NFEV_BODY] += 4
+        stats[NFEV_MUSCLE] += 4
+        out[n + 1, 0], out[n + 1, 1], out[n + 1, 2], out[n + 1, 3] = th, om, tf, te
+        stats[STEPS] = n + 1
+        status = _check_state(th, om, tf, te)
+        if status != OK:
+            stats[STATUS] = status
+            return
+    stats[SWEEPS] = n_steps
+
+
+@njit(cache=True)
+def _body_rk4(th, om, h, torque0, torque_slope, b):
+    """One RK4 step of the body part with net torque T(s) = T0 + slope·s/h over the step."""
+    half = 0.5 * h
+    t_mid = torque0 + 0.5 * torque_slope
+    k1 = body_rates(th, om, torque0, b)
+    k2 = body_rates(th + half * k1[0], om + half * k1[1], t_mid, b)
+    k3 = body_rates(th + half * k2[0], om + half * k2[1], t_mid, b)
+    k4 = body_rates(th + h * k3[0], om + h * k3[1], torque0 + torque_slope, b)
+    w = h / 6.0
+    return (th + w * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0]),
+            om + w * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1]))
+
+
+@njit(cache=True)
+def _muscle_rk4(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe, af, ae):
+    """``substeps`` RK4 steps of the muscle part over [t, t + h] with joint angle
+    θ(s) = θ0 + slope·s/h; activation is evaluated at every stage time.
+
+    ``start_rate`` is the muscle rate at (t, θ0, θ_cc) already evaluated by the caller: it is
+    the first stage of the first sub-step. Makes 4·substeps − 1 muscle evaluations.
+    """
+    hs = h / substeps
+    half = 0.5 * hs
+    rate = theta_slope / h
+    for j in range(substeps):
+        s = j * hs
+        ts = t + s
+        if j == 0:
+            k1 = start_rate
+        else:
+            k1 = muscle_rates(ts, theta0 + rate * s, tf, te, pf, pe, af, ae)
+        th_mid = theta0 + rate * (s + half)
+        k2 = muscle_rates(ts + half, th_mid, tf + half * k1[0], te + half * k1[1],
+                          pf, pe, af, ae)
+        k3 = muscle_rates(ts + half, th_mid, tf + half * k2[0], te + half * k2[1],
+                          pf, pe, af, ae)
+        k4 = muscle_rates(ts + hs, theta0 + rate * (s + hs), tf + hs * k3[0],
+                          te + hs * k3[1], pf, pe, af, ae)
+        w = hs / 6.0
+        tf += w * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])
+        te += w * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1])
+    return tf, te
+
+
+@njit(cache=True)
+def _stage_exchange_step(t, th, om, tf, te, h, b, pf, pe, af, ae):
+    """One step with each part's own RK4 stages, exchanging values at every stage.
+
+    The body stage sees the torque of the muscle stage state and the muscle stage sees the
+    body stage angle: algebraically this is monolithic RK4, written through the two parts.
+    """
+    half = 0.5 * h
+    kb1 = body_rates(th, om, net_muscle_torque(th, tf, te, pf, pe), b)
+    km1 = muscle_rates(t, th, tf, te, pf, pe, af, ae)
+    th2, om2, tf2, te2 = th + half * kb1[0], om + half * kb1[1], tf + half * km1[0], \
+        te + half * km1[1]
+    kb2 = body_rates(th2, om2, net_muscle_torque(th2, tf2, te2, pf, pe), b)
+    km2 = muscle_rates(t + half, th2, tf2, te2, pf, pe, af, ae)
+    th3, om3, tf3, te3 = th + half * kb2[0], om + half * kb2[1], tf + half * km2[0], \
+        te + half * km2[1]
+    kb3 = body_rates(th3, om3, net_muscle_torque(th3, tf3, te3, pf, pe), b)
+    km3 = muscle_rates(t + half, th3, tf3, te3, pf, pe, af, ae)
+    th4, om4, tf4, te4 = th + h * kb3[0], om + h * kb3[1], tf + h * km3[0], te + h * km3[1]
+    kb4 = body_rates(th4, om4, net_muscle_torque(th4, tf4, te4, pf, pe), b)
+    km4 = muscle_rates(t + h, th4, tf4, te4, pf, pe, af, ae)
+    w = h / 6.0
+    return (th + w * (kb1[0] + 2.0 * (kb2[0] + kb3[0]) + kb4[0]),
+            om + w * (kb1[1] + 2.0 * (kb2[1] + kb3[1]) + kb4[1]),
+            tf + w * (km1[0] + 2.0 * (km2[0] + km3[0]) + km4[0]),
+            te + w * (km1[1] + 2.0 * (km2[1] + km3[1]) + km4[1]))
+
+
+@njit(cache=True)
+def rk4_partitioned(y0, h, n_steps, b, pf, pe, af, ae, coupling, out, stats):
+    """Body and muscle parts each advanced by their own RK4, exchanging at step boundaries
+    (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
+
+    Default scheme (Jacobi, hold, 1 sub-step, 1 sweep): the body integrates with T_net held at
+    T_net(y_n) and the muscles with θ held at θ_n (zero-order hold).
+    Within a step each exchanged signal is affine in time: its step-start value plus a slope
+    that is zero (hold), the previous step's change (linear extrapolation) or, once the other
+    part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
+    """
+    order = int(coupling[ORDER])
+    predictor = int(coupling[PREDICTOR])
+    substeps = int(coupling[MUSCLE_SUBSTEPS])
+    sweeps = int(coupling[ITERATIONS])
+    tol = coupling[TOLERANCE]
+    th, om, tf, te = y0[0], y0[1], y0[2], y0[3]
+    out[0, 0], out[0, 1], out[0, 2], out[0, 3] = th, om, tf, te
+    th_prev = th
+    torque_prev = net_muscle_torque(th, tf, te, pf, pe)
+    hm = h / substeps
+    for n in range(n_steps):
+        t = n * h
+        torque_n = net_muscle_torque(th, tf, te, pf, pe)
+        rate = muscle_rates(t, th, tf, te, pf, pe, af, ae)
+        stats[NFEV_MUSCLE] += 1
+        _record_stiffness(stats, t, hm, tf, te, rate[0], rate[1], pf, pe, af, ae)
+        if order == EVERY_STAGE:
+            th1, om1, tf1, te1 = _stage_exchange_step(t, th, om, tf, te, h, b, pf, pe, af, ae)
+            stats[NFEV_BODY] += 4
+            stats[NFEV_MUSCLE] += 4
+            stats[SWEEPS] += 1
+        else:
+            if predictor == LINEAR and n > 0:
+                theta_slope = th - th_prev
+                torque_slope = torque_n - torque_prev
+            else:
+                theta_slope = 0.0
+                torque_slope = 0.0
+            th1, om1, tf1, te1 = th, om, tf, te
+            for sweep in range(sweeps):
+                old = (th1, om1, tf1, te1)
+                if order == MUSCLES_FIRST:
+                    tf1, te1 = _muscle_rk4(t, tf, te, h, substeps, th, theta_slope, rate,
+                                           pf, pe, af, ae)
+                    torque_slope = net_muscle_torque(th + theta_slope, tf1, te1, pf, pe) \
+                        - torque_n
+                    th1, om1 = _body_rk4(th, om, h, torque_n, torque_slope, b)
+                else:
+                    th1, om1 = _body_rk4(th, om, h, torque_n, torque_slope, b)
+                    if order == BODY_FIRST:
+                        theta_slope = th1 - th
+                    tf1, te1 = _muscle_rk4(t, tf, te, h, substeps, th, theta_slope, rate,
+                                           pf, pe, af, ae)
+                stats[NFEV_BODY] += 4
+                stats[NFEV_MUSCLE] += 4 * substeps - 1
+                stats[SWEEPS] += 1
+                # Later sweeps see the other part's end-of-step values (waveform relaxation).
+                theta_slope = th1 - th
+                torque_slope = net_muscle_torque(th1, tf1, te1, pf, pe) - torque_n
+                if sweep > 0 and tol > 0.0:
+                    change = max(abs(th1 - old[0]), abs(om1 - old[1]) * h,
+                                 abs(tf1 - old[2]), abs(te1 - old[3]))
+                    if change <= tol:
+                        break
+        th_prev, torque_prev = th, torque_n
+        th, om, tf, te = th1, om1, tf1, te1
+        out[n + 1, 0], out[n + 1, 1], out[n + 1, 2], out[n + 1, 3] = th, om, tf, te
+        stats[STEPS] = n + 1
+        status = _check_state(th, om, tf, te)
+        if status != OK:
+            stats[STATUS] = status
+            return
+
+
+def new_stats() -> np.ndarray:
+    """A zeroed stats array for the loops."""
+    return np.zeros(STATS_SIZE)
