@@ -102,13 +102,13 @@ class ActivationProfile:
         return np.array([activation(float(ti), packed) for ti in t.ravel()]).reshape(t.shape)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quintic_ramp(s):
     """Minimum-jerk blend s³(6s² − 15s + 10) for s ∈ [0, 1]."""
     return s * s * s * (s * (6.0 * s - 15.0) + 10.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def activation(t, profile):
     """a(t) of a packed profile ``[a_0, n, (t_on, r, level) × n]`` (see module docstring)."""
     level = profile[0]

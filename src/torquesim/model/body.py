@@ -116,7 +116,7 @@ class BodyParameters:
         return p
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def passive_torque(theta, b):
     """End-stop torque T_p(θ) = k_p·[exp((θ_lo − θ)/s_p) − exp((θ − θ_hi)/s_p)], N·m."""
     s = b[ENDSTOP_SCALE]
@@ -124,7 +124,7 @@ def passive_torque(theta, b):
                                 - math.exp((theta - b[ENDSTOP_HIGH]) / s))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def passive_energy(theta, b):
     """Potential V_p(θ) of the end stops, J, with −dV_p/dθ = T_p(θ)."""
     s = b[ENDSTOP_SCALE]
@@ -132,7 +132,7 @@ def passive_energy(theta, b):
                                     + math.exp((theta - b[ENDSTOP_HIGH]) / s))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def angular_acceleration(theta, net_muscle_torque, b):
     """dω/dt = (T_net + T_p(θ) − G·sin θ) / I_E, rad/s² (abstract Eq. 1 with end stops)."""
     return (net_muscle_torque + passive_torque(theta, b)

@@ -166,7 +166,7 @@ def _check_monotone(p: np.ndarray) -> None:
         )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def tetanic_torque_velocity(omega, p):
     """T_ω(ω): tetanic torque/angular-velocity curve, N·m (Yeadon, King & Wilson 2006).
 
@@ -181,7 +181,7 @@ def tetanic_torque_velocity(omega, p):
     return p[E_ECC] / (p[OMEGA_E] - omega) + p[T_MAX]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def tetanic_torque_velocity_slope(omega, p):
     """dT_ω/dω, N·m·s/rad; at the kink ω = 0 the concentric (right) slope."""
     if omega >= p[OMEGA_MAX]:
@@ -193,7 +193,7 @@ def tetanic_torque_velocity_slope(omega, p):
     return p[E_ECC] / (x * x)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def differential_activation(omega, p):
     """d(ω) = a_min + (1 − a_min)/(1 + exp(−(ω − ω_1)/ω_r)), dimensionless.
 
@@ -202,51 +202,45 @@ def differential_activation(omega, p):
     return p[A_MIN] + (1.0 - p[A_MIN]) / (1.0 + math.exp(-(omega - p[OMEGA_1]) / p[OMEGA_R]))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def differential_activation_slope(omega, p):
     """dd/dω, s/rad."""
     s = 1.0 / (1.0 + math.exp(-(omega - p[OMEGA_1]) / p[OMEGA_R]))
     return (1.0 - p[A_MIN]) * s * (1.0 - s) / p[OMEGA_R]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def torque_angle(theta_cc, p):
     """T_θ(θ_cc) = max(1 − k2·(θ_cc − θ_opt)², 0.01), dimensionless (King-type quadratic)."""
     x = theta_cc - p[THETA_OPT]
     return max(1.0 - p[K2] * x * x, TORQUE_ANGLE_FLOOR)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ce_torque_velocity(omega, p):
     """h(ω) = d(ω)·T_ω(ω), N·m: the CE torque at full activation and optimal angle."""
     return differential_activation(omega, p) * tetanic_torque_velocity(omega, p)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ce_torque_velocity_slope(omega, p):
     """h'(ω) = d'·T_ω + d·T_ω', N·m·s/rad (concentric slope at the kink ω = 0)."""
     return (differential_activation_slope(omega, p) * tetanic_torque_velocity(omega, p)
             + differential_activation(omega, p) * tetanic_torque_velocity_slope(omega, p))
 
 
-@njit(cache=True)
-def _inverse_tetanic(y, p, concentric):
-    """Closed-form inverse of T_ω on one branch (start value for Newton)."""
-    if concentric:
-        return p[C_CONC] / (y + p[T_C]) - p[OMEGA_C]
-    if y >= p[T_MAX]:
-        return -p[OMEGA_MAX]
-    return p[OMEGA_E] - p[E_ECC] / (y - p[T_MAX])
-
-
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ce_velocity(target, p):
     """CE angular velocity ω_cc solving h(ω_cc) = target (MODEL.md §2.5), rad/s.
 
     ``target = T / (max(a, 0.01)·T_θ(θ_cc))`` in N·m. Clamps: target ≤ 0 (slack SE) gives
-    +ω_max; target ≥ h(−ω_max) gives −ω_max. Otherwise the unique root, found by Newton's
-    method safeguarded by bisection on the branch (concentric or eccentric) that holds it, so
-    the kink of T_ω at ω = 0 never lies inside the bracket.
+    +ω_max; target ≥ h(−ω_max) gives −ω_max. Otherwise the unique root, on the branch
+    (concentric or eccentric) that holds it, so the kink of T_ω at ω = 0 is never crossed.
+
+    On each branch T_ω is linear in u = 1/(ω_c + ω) (concentric: T_ω = C·u − T_c) or in
+    u = 1/(ω_e − ω) (eccentric: T_ω = E·u + T_max), so h(u) = d·T_ω is nearly linear in u and
+    Newton's method in u, started from the closed-form inverse with d frozen, converges in a
+    few iterations. It is safeguarded by bisection on the branch's bracket.
     """
     wmax = p[OMEGA_MAX]
     if target <= 0.0:
@@ -256,47 +250,60 @@ def ce_velocity(target, p):
     if target == p[H_ISOMETRIC]:
         return 0.0
     concentric = target < p[H_ISOMETRIC]
+    d_iso = p[H_ISOMETRIC] / p[T0]  # d(0)
     if concentric:
-        lo, hi = 0.0, wmax
+        # u = 1/(ω_c + ω) ∈ [1/(ω_c + ω_max), 1/ω_c]; h increases with u.
+        scale, offset = p[C_CONC], -p[T_C]
+        shift, sign = p[OMEGA_C], 1.0
+        lo, hi = 1.0 / (p[OMEGA_C] + wmax), 1.0 / p[OMEGA_C]
     else:
-        lo, hi = -wmax, 0.0
-    # Start: invert T_ω with d frozen, twice (d varies slowly).
-    w = _inverse_tetanic(target / differential_activation(0.0, p), p, concentric)
-    w = min(max(w, lo), hi)
-    w = _inverse_tetanic(target / differential_activation(w, p), p, concentric)
-    w = min(max(w, lo), hi)
+        # u = 1/(ω_e − ω) ∈ [1/(ω_e + ω_max), 1/ω_e]; h decreases with u (E < 0).
+        scale, offset = p[E_ECC], p[T_MAX]
+        shift, sign = p[OMEGA_E], -1.0
+        lo, hi = 1.0 / (p[OMEGA_E] + wmax), 1.0 / p[OMEGA_E]
+    increasing = concentric
+    u = (target / d_iso - offset) / scale
     for _ in range(100):
-        f = ce_torque_velocity(w, p) - target
+        if not (lo < u < hi):
+            u = 0.5 * (lo + hi)
+        w = sign * (1.0 / u - shift)
+        e = math.exp(-(w - p[OMEGA_1]) / p[OMEGA_R])
+        sig = 1.0 / (1.0 + e)
+        d = p[A_MIN] + (1.0 - p[A_MIN]) * sig
+        d_slope = (1.0 - p[A_MIN]) * sig * (1.0 - sig) / p[OMEGA_R]  # dd/dω
+        tet = scale * u + offset
+        f = d * tet - target
         if f == 0.0:
             return w
-        if f > 0.0:  # h decreasing: root lies to the right
-            lo = w
+        if (f > 0.0) == increasing:
+            hi = u
         else:
-            hi = w
-        slope = ce_torque_velocity_slope(w, p)
-        w_new = w - f / slope if slope < 0.0 else 0.5 * (lo + hi)
-        if not (lo < w_new < hi):
-            w_new = 0.5 * (lo + hi)
-        if abs(w_new - w) <= 1e-14 * (1.0 + abs(w)):
-            return w_new
-        w = w_new
-    return w
+            lo = u
+        # dω/du = −sign/u²
+        slope = d * scale - d_slope * sign * tet / (u * u)
+        u_new = u - f / slope
+        if abs(u_new - u) <= 1e-10 * u:
+            return sign * (1.0 / u_new - shift)
+        if hi - lo <= 1e-16 * u:
+            return w
+        u = u_new
+    return sign * (1.0 / u - shift)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def unit_torque(stretch, p):
     """SE torque k·max(s, 0), N·m: a slack SE cannot push."""
     return p[K_SE] * max(stretch, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def unit_ce_velocity(stretch, theta_cc, activation, p):
     """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``."""
     target = unit_torque(stretch, p) / (max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p))
     return ce_velocity(target, p)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def unit_time_constant(omega_cc, theta_cc, activation, p):
     """Time constant τ = a·T_θ·|h'(ω_cc)|/k of the unit's CE equation, s (MODEL.md §5).
 

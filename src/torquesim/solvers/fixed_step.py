@@ -34,7 +34,7 @@ JACOBI, BODY_FIRST, MUSCLES_FIRST, EVERY_STAGE = 0, 1, 2, 3
 HOLD, LINEAR = 0, 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _check_state(theta, omega, theta_cc_f, theta_cc_e):
     if not (math.isfinite(theta) and math.isfinite(omega) and math.isfinite(theta_cc_f)
             and math.isfinite(theta_cc_e)):
@@ -44,7 +44,7 @@ def _check_state(theta, omega, theta_cc_f, theta_cc_e):
     return OK
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _record_stiffness(stats, t, h_muscle, theta_cc_f, theta_cc_e, rate_f, rate_e,
                       pf, pe, af, ae):
     """Update the largest step/τ seen (the stability guard); rate_* are dθ_cc/dt."""
@@ -62,7 +62,7 @@ def _record_stiffness(stats, t, h_muscle, theta_cc_f, theta_cc_e, rate_f, rate_e
         stats[WORST_UNIT] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rk4_monolithic(y0, h, n_steps, b, pf, pe, af, ae, out, stats):
     """Classical RK4 on the whole state y = (θ, ω, θ_cc,F, θ_cc,E) (technique 2).
 
@@ -97,7 +97,7 @@ def rk4_monolithic(y0, h, n_steps, b, pf, pe, af, ae, out, stats):
     stats[SWEEPS] = n_steps
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _body_rk4(th, om, h, torque0, torque_slope, b):
     """One RK4 step of the body part with net torque T(s) = T0 + slope·s/h over the step."""
     half = 0.5 * h
@@ -111,7 +111,7 @@ def _body_rk4(th, om, h, torque0, torque_slope, b):
             om + w * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1]))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _muscle_rk4(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe, af, ae):
     """``substeps`` RK4 steps of the muscle part over [t, t + h] with joint angle
     θ(s) = θ0 + slope·s/h; activation is evaluated at every stage time.
@@ -142,7 +142,7 @@ def _muscle_rk4(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe,
     return tf, te
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _stage_exchange_step(t, th, om, tf, te, h, b, pf, pe, af, ae):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
@@ -170,7 +170,7 @@ def _stage_exchange_step(t, th, om, tf, te, h, b, pf, pe, af, ae):
             te + w * (km1[1] + 2.0 * (km2[1] + km3[1]) + km4[1]))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rk4_partitioned(y0, h, n_steps, b, pf, pe, af, ae, coupling, out, stats):
     """Body and muscle parts each advanced by their own RK4, exchanging at step boundaries
     (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).

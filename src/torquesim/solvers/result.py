@@ -72,7 +72,8 @@ class StabilityReport:
     ``max_step_ratio`` is the largest step/τ seen (τ: a unit's CE time constant), at time
     ``time`` in unit ``unit``. ``exceeded`` is True when it passed the RK4 limit 2.785: the
     motion is then probably wrong although bounded. ``largest_safe_step`` (s) is
-    2.785·(step/max_step_ratio)."""
+    2.785·min τ; when the limit was exceeded the τ seen belong to a wrong motion, so the
+    suggestion is also capped at half the step used."""
 
     max_step_ratio: float
     time: float
@@ -87,13 +88,15 @@ class StabilityReport:
     def largest_safe_step(self) -> float:
         if self.max_step_ratio <= 0.0:
             return math.inf
-        return RK4_STABILITY_LIMIT * self.step / self.max_step_ratio
+        safe = RK4_STABILITY_LIMIT * self.step / self.max_step_ratio
+        return min(safe, 0.5 * self.step) if self.exceeded else safe
 
     def message(self) -> str:
         return (f"step {self.step * 1e3:g} ms exceeds the RK4 stability limit in the {self.unit} "
                 f"unit at t = {self.time:.4f} s (step/τ = {self.max_step_ratio:.3g} > "
                 f"{RK4_STABILITY_LIMIT:.3f}); the motion is probably wrong although bounded. "
-                f"Largest safe step ≈ {self.largest_safe_step * 1e3:.3g} ms.")
+                f"Use a step ≤ {self.largest_safe_step * 1e3:.3g} ms (estimated on this run's "
+                "motion) or method 'reference'.")
 
 
 @dataclass(frozen=True)

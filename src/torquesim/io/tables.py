@@ -1,0 +1,118 @@
+"""Result tables: CSV and OpenSim storage (.sto/.mot), plus a JSON manifest beside them."""
+
+from __future__ import annotations
+
+import csv
+import json
+import platform
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelError
+from .atomic import write_atomic, write_text_atomic
+
+TABLE_SUFFIXES = (".csv", ".sto", ".mot")
+
+
+def table_kind(path) -> str:
+    """``"csv"`` or ``"sto"`` from the file name; anything else is an error."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in TABLE_SUFFIXES:
+        raise ModelError("out", f"{str(path)!r}: unknown extension; allowed "
+                         f"{', '.join(TABLE_SUFFIXES)}")
+    return "csv" if suffix == ".csv" else "sto"
+
+
+def _write_csv(tmp: Path, columns: dict[str, np.ndarray]) -> None:
+    data = np.column_stack(list(columns.values()))
+    with tmp.open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(columns.keys())
+        writer.writerows([repr(float(x)) for x in row] for row in data)
+
+
+def _write_sto(tmp: Path, columns: dict[str, np.ndarray], name: str,
+               in_degrees: bool) -> None:
+    data = np.column_stack(list(columns.values()))
+    with tmp.open("w", encoding="utf-8") as fh:
+        fh.write(f"{name}\nversion=1\nnRows={data.shape[0]}\nnColumns={data.shape[1]}\n")
+        fh.write(f"inDegrees={'yes' if in_degrees else 'no'}\nendheader\n")
+        fh.write("\t".join(columns.keys()) + "\n")
+        for row in data:
+            fh.write("\t".join(repr(float(x)) for x in row) + "\n")
+
+
+def write_table(path, columns: dict[str, np.ndarray], *, name: str = "torquesim",
+                in_degrees: bool = False) -> Path:
+    """Write columns (first one ``time``) as CSV or OpenSim storage, atomically."""
+    kind = table_kind(path)
+    if kind == "csv":
+        return write_atomic(path, lambda tmp: _write_csv(tmp, columns))
+    return write_atomic(path, lambda tmp: _write_sto(tmp, columns, name, in_degrees))
+
+
+def manifest(result, **extra) -> dict:
+    """What is needed to repeat a run: version, model, method, settings, machine."""
+    from .. import __version__
+    from .model_file import model_to_toml
+
+    stability = result.stability
+    return {
+        "torquesim_version": __version__,
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "method": result.method,
+        "step_s": result.step,
+        "settings": result.settings,
+        "status": result.status,
+        "message": result.message,
+        "cost": {"steps": result.cost.steps, "rhs_body": result.cost.rhs_body,
+                 "rhs_muscle": result.cost.rhs_muscle, "wall_time_s": result.cost.wall_time},
+        "stability": None if stability is None else {
+            "max_step_over_tau": stability.max_step_ratio, "at_time_s": stability.time,
+            "unit": stability.unit, "exceeded": stability.exceeded,
+            "largest_safe_step_s": stability.largest_safe_step},
+        "machine": {"python": platform.python_version(), "platform": platform.platform(),
+                    "processor": platform.machine()},
+        "model_toml": model_to_toml(result.model),
+        **extra,
+    }
+
+
+def save_result(result, path) -> Path:
+    """Write a result table (CSV or .sto by extension) and ``<path>.manifest.json``."""
+    path = Path(path)
+    table_kind(path)
+    info = manifest(result)
+    write_table(path, result.columns(), name=f"torquesim {result.method}")
+    write_text_atomic(path.with_name(path.name + ".manifest.json"),
+                      json.dumps(info, indent=2, default=float) + "\n")
+    return path
+
+
+def read_table(path) -> dict[str, np.ndarray]:
+    """Read a CSV or OpenSim storage file written by torquesim (or any numeric table with a
+    header row) into columns. For .sto/.mot, ``inDegrees`` is returned under ``"_in_degrees"``
+    as a 0-d boolean array when present."""
+    path = Path(path)
+    lines = path.read_text(encoding="utf-8").splitlines()
+    in_degrees = None
+    start = 0
+    if table_kind(path) == "sto":
+        for i, line in enumerate(lines):
+            key = line.strip().lower()
+            if key.startswith("indegrees="):
+                in_degrees = key.split("=", 1)[1].strip() == "yes"
+            if key == "endheader":
+                start = i + 1
+                break
+        rows = [line.split() for line in lines[start:] if line.strip()]
+    else:
+        rows = list(csv.reader(lines))
+    header, body = rows[0], rows[1:]
+    data = np.array(body, dtype=float).reshape(len(body), len(header))
+    out = {name.strip(): data[:, j] for j, name in enumerate(header)}
+    if in_degrees is not None:
+        out["_in_degrees"] = np.array(in_degrees)
+    return out
