@@ -5,7 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import platform
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -61,7 +61,7 @@ def manifest(result, **extra) -> dict:
     stability = result.stability
     return {
         "torquesim_version": __version__,
-        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
         "method": result.method,
         "step_s": result.step,
         "settings": result.settings,

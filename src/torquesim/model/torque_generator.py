@@ -299,7 +299,8 @@ def unit_torque(stretch, p):
 @njit(cache=True, error_model="numpy")
 def unit_ce_velocity(stretch, theta_cc, activation, p):
     """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``."""
-    target = unit_torque(stretch, p) / (max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p))
+    capacity = max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
+    target = unit_torque(stretch, p) / capacity
     return ce_velocity(target, p)
 
 
