@@ -1,0 +1,77 @@
+"""Body parameters and the static-equilibrium start."""
+
+import math
+
+import numpy as np
+import pytest
+
+import torquesim as ts
+from torquesim.model.body import passive_energy, passive_torque
+from torquesim.solvers.rates import elbow_rates
+
+
+def test_inertia_and_passive_torque_match_model_md(model):
+    assert model.body.elbow_inertia == pytest.approx(0.653145, abs=1e-9)
+    assert passive_torque(math.radians(10), model.body.to_array()) == pytest.approx(
+        0.030481, abs=1e-6)
+
+
+def test_passive_torque_is_minus_gradient_of_its_energy(model):
+    b = model.body.to_array()
+    for theta in (-0.05, 0.1, 1.5, 2.6, 2.7):
+        numeric = -(passive_energy(theta + 1e-7, b) - passive_energy(theta - 1e-7, b)) / 2e-7
+        assert passive_torque(theta, b) == pytest.approx(numeric, rel=1e-6)
+
+
+def test_initial_state_matches_model_md(model):
+    start = model.initial_state()
+    assert start.flexor_level == pytest.approx(0.205878, abs=1e-6)
+    assert start.state[2] == pytest.approx(0.186777, abs=1e-6)
+    assert start.state[3] == pytest.approx(0.161189, abs=1e-6)
+
+
+@pytest.mark.parametrize("angle_deg", [5.0, 10.0, 45.0, 90.0, 120.0])
+def test_initial_state_is_an_equilibrium(angle_deg):
+    m = ts.default_model().replace(initial_angle=math.radians(angle_deg))
+    rates = elbow_rates(0.0, *m.initial_state().state, *m.pack())
+    assert rates[0] == 0.0
+    assert abs(rates[1]) < 1e-12  # no angular acceleration
+    assert abs(rates[2]) < 1e-9 and abs(rates[3]) < 1e-9  # both CEs isometric
+
+
+def test_start_the_flexor_cannot_hold():
+    with pytest.raises(ts.ModelError, match="initial_angle.*activation 1.9"):
+        ts.default_model().replace(body=ts.BodyParameters(dumbbell_mass=40.0),
+                                   initial_angle=math.radians(90))
+
+
+def test_start_where_the_flexor_would_push():
+    # hanging straight, the end stop pushes (1 N·m) more than a resting extensor pulls
+    with pytest.raises(ts.ModelError, match="initial_angle.*push"):
+        ts.default_model().replace(extensor_activation=ts.ActivationProfile(0.0),
+                                   initial_angle=0.0)
+
+
+@pytest.mark.parametrize("field, value", [
+    ("segment_mass", 0.0), ("segment_mass", -1.6), ("segment_com_distance", 0.0),
+    ("segment_inertia", -0.1), ("dumbbell_mass", -5.0), ("dumbbell_distance", 0.0),
+    ("endstop_angle_scale", 0.0), ("gravity", math.nan), ("endstop_upper_angle", -0.5)])
+def test_bad_body_parameters_name_the_field(field, value):
+    with pytest.raises(ts.ModelError) as info:
+        ts.BodyParameters(**{field: value})
+    assert info.value.field == field
+
+
+@pytest.mark.parametrize("field, value", [("duration", 0.0), ("duration", -1.0),
+                                          ("initial_angle", 4.0)])
+def test_bad_model_fields(field, value):
+    with pytest.raises(ts.ModelError) as info:
+        ts.default_model().replace(**{field: value})
+    assert info.value.field == field
+
+
+def test_zero_dumbbell_gives_the_bare_forearm():
+    m = ts.default_model().replace(body=ts.BodyParameters(dumbbell_mass=0.0,
+                                                          dumbbell_inertia=0.0))
+    assert m.body.elbow_inertia == pytest.approx(0.0763)
+    assert np.isfinite(m.initial_state().flexor_level)

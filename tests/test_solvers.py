@@ -1,0 +1,174 @@
+"""Solvers: golden trajectory, agreement with the reference, physics, order, guard."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import linregress
+
+import torquesim as ts
+from torquesim.study import smooth_case
+
+from .conftest import max_angle_error
+
+# MODEL.md §3: converged default curl, θ (deg) at t = 0, 0.5, ..., 3.0 s.
+GOLDEN_DEG = [10.0000, 37.5343, 105.9319, 137.8826, 109.2625, 38.6858, 11.8909]
+
+
+def test_reference_reproduces_model_md(reference):
+    got = np.degrees(reference.theta[::500])
+    assert got == pytest.approx(GOLDEN_DEG, abs=1e-4)
+    peak, t_peak = reference.peak()
+    assert math.degrees(peak) == pytest.approx(138.74, abs=0.01)
+    assert t_peak == pytest.approx(1.42, abs=0.01)
+
+
+def test_monolithic_default_reproduces_model_md(model):
+    result = ts.simulate(model)
+    assert np.degrees(result.theta[::5000]) == pytest.approx(GOLDEN_DEG, abs=1e-4)
+    assert result.cost.steps == 30000
+    assert result.cost.rhs_body == result.cost.rhs_muscle == 4 * 30000
+    assert not result.stability.exceeded
+
+
+def test_monolithic_agrees_with_reference(model, reference):
+    result = ts.simulate(model, "monolithic", 5e-5)
+    assert max_angle_error(result, reference) < 1e-7
+
+
+def test_partitioned_is_first_order_accurate_and_wrong_by_model_md_amount(model, reference):
+    e1 = max_angle_error(ts.simulate(model, "partitioned", 1e-4), reference)
+    e2 = max_angle_error(ts.simulate(model, "partitioned", 5e-5), reference)
+    assert 0.10 < e1 < 0.18  # MODEL.md §5: about 0.14 rad
+    assert 0.05 < e2 < 0.10  # about 0.075 rad
+    assert 1.6 < e1 / e2 < 2.4  # first order
+
+
+@pytest.mark.parametrize("method", ["monolithic", "partitioned", "reference"])
+def test_static_equilibrium_stays_put(method):
+    m = ts.default_model().replace(flexor_activation=ts.ActivationProfile(None),
+                                   extensor_activation=ts.ActivationProfile(0.1),
+                                   initial_angle=math.radians(70), duration=1.0)
+    result = ts.simulate(m, method, 1e-4)
+    assert np.max(np.abs(result.states - result.states[0])) < 1e-9
+
+
+def total_energy(result):
+    """Kinetic + gravity + SE + end-stop energy (J)."""
+    from torquesim.model.body import passive_energy
+
+    m, c = result.model, result.columns()
+    se_f = 0.5 * m.flexor.se_stiffness * np.maximum(c["theta_cc_flexor"] - c["theta"], 0) ** 2
+    se_e = 0.5 * m.extensor.se_stiffness * np.maximum(c["theta"] - c["theta_cc_extensor"],
+                                                      0) ** 2
+    b = m.body.to_array()
+    stops = np.array([passive_energy(x, b) for x in c["theta"]])
+    return (0.5 * m.body.elbow_inertia * c["omega"] ** 2
+            + m.body.gravity_torque_coefficient * (1 - np.cos(c["theta"])) + se_f + se_e + stops)
+
+
+def test_energy_balance_on_the_default_curl(model):
+    """d/dt(total energy) = CE power T_F·ω_F + T_E·ω_E (the only non-conservative work)."""
+    result = ts.simulate(model, "monolithic", 5e-5)
+    c = result.columns()
+    energy = total_energy(result)
+    power = c["torque_flexor"] * c["omega_cc_flexor"] + c["torque_extensor"] * c[
+        "omega_cc_extensor"]
+    work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(c["time"]))])
+    swing = np.ptp(energy)
+    assert swing > 10.0  # the curl lifts the dumbbell: the check is not vacuous
+    assert np.max(np.abs(energy - energy[0] - work)) < 1e-4 * swing
+
+
+def test_passive_swing_is_a_damped_pendulum():
+    """Activations at the floor, compliant SEs, no end stops: a lightly damped pendulum."""
+    weak = ts.TorqueGeneratorUnit.flexor_default()
+    weak = weak.__class__(**{**weak.as_dict(), "se_stiffness": 2.0})
+    m = ts.default_model().replace(
+        body=ts.BodyParameters(endstop_torque=0.0), flexor=weak,
+        extensor=weak, flexor_activation=ts.ActivationProfile(0.0),
+        extensor_activation=ts.ActivationProfile(0.0), duration=6.0)
+    amplitude = 0.3
+    y0 = [amplitude, 0.0, amplitude, amplitude]
+    result = ts.simulate(m, "monolithic", 1e-4, initial_state=y0)
+    theta, t = result.theta, result.time
+    peaks = [i for i in range(1, len(theta) - 1) if theta[i - 1] < theta[i] >= theta[i + 1]]
+    assert len(peaks) >= 3
+    period = np.mean(np.diff(t[peaks]))
+    small = 2 * np.pi * math.sqrt(m.body.elbow_inertia / m.body.gravity_torque_coefficient)
+    assert period == pytest.approx(small * (1 + amplitude**2 / 16), rel=0.03)
+    heights = theta[peaks]
+    assert np.all(np.diff(heights) < 0)  # damped
+    assert heights[-1] > 0.2 * amplitude  # lightly
+    assert total_energy(result)[-1] < total_energy(result)[0]
+
+
+def test_every_stage_exchange_is_monolithic_to_round_off(model):
+    mono = ts.simulate(model, "monolithic", 2e-4)
+    stage = ts.simulate(model, "partitioned", 2e-4, coupling=ts.Coupling(order="every-stage"))
+    assert np.max(np.abs(mono.states - stage.states)) < 1e-12
+
+
+def _order(method, coupling, steps):
+    m, y0 = smooth_case()
+    ref = ts.simulate(m, "reference", rtol=1e-12, atol=1e-14, initial_state=y0,
+                      output_step=0.01)
+    errors = []
+    for h in steps:
+        r = ts.simulate(m, method, h, initial_state=y0, coupling=coupling)
+        k = int(round(0.01 / h))
+        errors.append(np.max(np.abs(r.theta[::k] - ref.theta)))
+    return linregress(np.log(steps), np.log(errors)).slope
+
+
+@pytest.mark.slow
+def test_monolithic_order_four_on_smooth_case():
+    slope = _order("monolithic", None, [2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4])
+    assert 3.5 < slope < 4.5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("coupling, low, high", [
+    (ts.Coupling(), 0.8, 1.2), (ts.Coupling(order="body-first"), 0.8, 1.2),
+    (ts.Coupling(predictor="linear"), 1.8, 2.2), (ts.Coupling(iterations=3), 1.8, 2.2)])
+def test_partitioned_orders_on_smooth_case(coupling, low, high):
+    assert low < _order("partitioned", coupling, [1.25e-3, 6.25e-4, 3.125e-4, 1.5625e-4]) < high
+
+
+def test_stability_guard_flags_large_steps(model, reference):
+    bad = ts.simulate(model, "monolithic", 1e-3)
+    assert bad.stability.exceeded
+    assert max_angle_error(bad, reference) > 0.05  # it really is wrong
+    assert "stability limit" in bad.message
+    assert bad.stability.largest_safe_step <= 0.5e-3
+    good = ts.simulate(model, "monolithic", 2.5e-4)
+    assert not good.stability.exceeded
+    assert max_angle_error(good, reference) < 1e-6
+    # the guard's τ agrees with the time constants along the motion
+    tau_f, tau_e = good.time_constants()
+    assert good.stability.max_step_ratio == pytest.approx(
+        2.5e-4 / min(tau_f.min(), tau_e.min()), rel=0.05)
+
+
+def test_blow_up_is_reported_with_time_and_advice(model):
+    with pytest.raises(ts.SimulationError, match=r"t = .* smaller step"):
+        ts.simulate(model, "monolithic", 0.1)
+    failed = ts.simulate(model, "monolithic", 0.1, check=False)
+    assert failed.status == "failed" and failed.time[-1] < model.duration
+
+
+@pytest.mark.parametrize("step", [7e-4, 0.0, -1e-4, 5.0, math.nan])
+def test_step_must_divide_duration(model, step):
+    with pytest.raises(ts.ModelError) as info:
+        ts.simulate(model, "monolithic", step)
+    assert info.value.field == "step"
+
+
+def test_unknown_method(model):
+    with pytest.raises(ts.ModelError, match="method"):
+        ts.simulate(model, "euler")
+
+
+def test_adaptive_cost_counts_every_call(model):
+    r = ts.simulate(model, "scipy:RK45", rtol=1e-6, atol=1e-9)
+    assert r.cost.steps > 0 and r.cost.rhs_body >= 6 * r.cost.steps

@@ -1,0 +1,131 @@
+"""Torque/velocity, differential activation, torque/angle and the CE inversion."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import torquesim as ts
+from torquesim.model import torque_generator as tg
+
+FLEXOR = ts.TorqueGeneratorUnit.flexor_default()
+PF = FLEXOR.to_array()
+PE = ts.TorqueGeneratorUnit.extensor_default().to_array()
+
+
+def test_derived_constants_match_model_md():
+    assert PF[tg.T_C] == pytest.approx(22.916667, abs=1e-6)
+    assert PF[tg.C_CONC] == pytest.approx(538.541667, abs=1e-6)
+    assert PF[tg.OMEGA_E] == pytest.approx(0.342900, abs=1e-6)
+    assert PF[tg.E_ECC] == pytest.approx(-9.001113, abs=1e-6)
+
+
+@pytest.mark.parametrize("omega, expected", [(0, 71.25), (1, 59.2214), (-1, 86.2196),
+                                             (5, 28.3729)])
+def test_h_table_of_model_md(omega, expected):
+    assert tg.ce_torque_velocity(float(omega), PF) == pytest.approx(expected, abs=5e-5)
+
+
+@pytest.mark.parametrize("p", [PF, PE])
+def test_tetanic_curve_limits_and_kink(p):
+    t0, eps = p[tg.T0], 1e-7
+    assert tg.tetanic_torque_velocity(0.0, p) == pytest.approx(t0, rel=1e-15)
+    # continuous at 0
+    assert tg.tetanic_torque_velocity(-1e-12, p) == pytest.approx(t0, rel=1e-10)
+    # slope jumps by the eccentric slope ratio 4.3
+    right = (tg.tetanic_torque_velocity(eps, p) - t0) / eps
+    left = (t0 - tg.tetanic_torque_velocity(-eps, p)) / eps
+    assert left / right == pytest.approx(4.3, rel=1e-5)
+    # zero at ω_max and beyond; eccentric plateau T_max far out
+    assert tg.tetanic_torque_velocity(p[tg.OMEGA_MAX], p) == 0.0
+    assert tg.tetanic_torque_velocity(p[tg.OMEGA_MAX] * (1 - 1e-12), p) == pytest.approx(
+        0.0, abs=1e-9)
+    assert tg.tetanic_torque_velocity(-1e9, p) == pytest.approx(p[tg.T_MAX], rel=1e-9)
+
+
+@pytest.mark.parametrize("p", [PF, PE])
+def test_h_strictly_decreasing_and_slope_consistent(p):
+    w = np.linspace(-p[tg.OMEGA_MAX], p[tg.OMEGA_MAX], 20001)
+    h = np.array([tg.ce_torque_velocity(x, p) for x in w])
+    assert np.all(np.diff(h) < 0)
+    for x in (-7.3, -0.2, 0.3, 4.0, 12.0):
+        numeric = (tg.ce_torque_velocity(x + 1e-6, p) - tg.ce_torque_velocity(x - 1e-6, p)) / 2e-6
+        assert tg.ce_torque_velocity_slope(x, p) == pytest.approx(numeric, rel=1e-6)
+
+
+def test_differential_activation_limits():
+    assert tg.differential_activation(-1e3, PF) == pytest.approx(0.9)
+    assert tg.differential_activation(1e3, PF) == pytest.approx(1.0)
+    assert tg.differential_activation(0.0, PF) == pytest.approx(0.95)
+
+
+def test_torque_angle_peak_and_floor():
+    assert tg.torque_angle(1.66, PF) == 1.0
+    assert tg.torque_angle(1.66 + 0.5, PF) == pytest.approx(1 - 0.23 * 0.25)
+    assert tg.torque_angle(1.66 + 10.0, PF) == 0.01
+    assert tg.torque_angle(1.66 - 10.0, PF) == 0.01
+
+
+@settings(max_examples=400, deadline=None)
+@given(fraction=st.floats(1e-9, 1 - 1e-12), unit=st.sampled_from([0, 1]))
+def test_inversion_round_trip(fraction, unit):
+    p = (PF, PE)[unit]
+    target = fraction * p[tg.H_ECC_LIMIT]
+    w = tg.ce_velocity(target, p)
+    assert -p[tg.OMEGA_MAX] <= w <= p[tg.OMEGA_MAX]
+    assert tg.ce_torque_velocity(w, p) == pytest.approx(target, rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize("p", [PF, PE])
+def test_inversion_clamps(p):
+    wmax = p[tg.OMEGA_MAX]
+    assert tg.ce_velocity(0.0, p) == wmax
+    assert tg.ce_velocity(-3.0, p) == wmax
+    assert tg.ce_velocity(p[tg.H_ECC_LIMIT], p) == -wmax
+    assert tg.ce_velocity(10 * p[tg.T_MAX], p) == -wmax
+    assert tg.ce_velocity(p[tg.H_ISOMETRIC], p) == 0.0
+    # continuity across the kink
+    assert abs(tg.ce_velocity(p[tg.H_ISOMETRIC] * (1 + 1e-12), p)) < 1e-9
+    assert abs(tg.ce_velocity(p[tg.H_ISOMETRIC] * (1 - 1e-12), p)) < 1e-9
+
+
+def test_unit_torque_cannot_push():
+    assert tg.unit_torque(-0.1, PF) == 0.0
+    assert tg.unit_torque(0.01, PF) == pytest.approx(6.0)
+    # slack SE: the CE shortens at its fastest
+    assert tg.unit_ce_velocity(-0.01, 1.0, 0.5, PF) == PF[tg.OMEGA_MAX]
+
+
+@pytest.mark.parametrize("omega", [-3.0, -0.1, 0.5, 6.0])
+def test_time_constant_is_the_linearised_rate(omega):
+    """τ = a·T_θ·|h'|/k equals −1/(∂ω_cc/∂θ_cc) at θ_cc = θ_opt (where T_θ' = 0)."""
+    a, theta_cc = 0.3, PF[tg.THETA_OPT]
+    stretch = a * tg.ce_torque_velocity(omega, PF) / PF[tg.K_SE]
+    theta = theta_cc - stretch
+    eps = 1e-8
+    d = (tg.unit_ce_velocity(theta_cc + eps - theta, theta_cc + eps, a, PF)
+         - tg.unit_ce_velocity(theta_cc - eps - theta, theta_cc - eps, a, PF)) / (2 * eps)
+    tau = tg.unit_time_constant(omega, theta_cc, a, PF)
+    assert -1.0 / d == pytest.approx(tau, rel=1e-5)
+    assert math.isinf(tg.unit_time_constant(PF[tg.OMEGA_MAX], theta_cc, a, PF))
+
+
+def test_non_monotone_h_is_rejected():
+    with pytest.raises(ts.ModelError, match="not strictly decreasing"):
+        FLEXOR.__class__(**{**FLEXOR.as_dict(), "min_differential_activation": 0.0,
+                            "differential_activation_rate": 0.05})
+
+
+@pytest.mark.parametrize("field, value", [
+    ("isometric_torque", 0.0), ("isometric_torque", -1.0), ("eccentric_torque_max", 70.0),
+    ("max_velocity", 0.0), ("velocity_constant", -1.0), ("min_differential_activation", 1.5),
+    ("differential_activation_rate", 0.0), ("differential_activation_midpoint", 30.0),
+    ("angle_curvature", -0.1), ("se_stiffness", 0.0), ("se_stiffness", math.nan),
+    ("se_stiffness", math.inf), ("optimal_angle", 10.0)])
+def test_bad_unit_parameters_name_the_field(field, value):
+    with pytest.raises(ts.ModelError) as info:
+        FLEXOR.__class__(**{**FLEXOR.as_dict(), field: value})
+    assert info.value.field == field
+    assert "allowed" in str(info.value)
