@@ -1,0 +1,86 @@
+"""The command line: summaries, files, one-line errors with exit code 2."""
+
+import subprocess
+import sys
+
+import pytest
+
+import torquesim as ts
+from torquesim.cli import main
+
+
+def run(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_simulate_prints_a_summary(capsys):
+    code, out, err = run(["simulate", "--duration", "1.5"], capsys)
+    assert code == 0
+    assert "peak angle    138.7" in out and "steps         15000" in out
+    assert err == ""
+
+
+def test_simulate_writes_table_and_plot(tmp_path, capsys):
+    out_file, png = tmp_path / "curl.sto", tmp_path / "curl.png"
+    code, out, _ = run(["simulate", "--method", "partitioned", "--step", "0.2ms",
+                        "--duration", "0.5", "--out", str(out_file), "--plot", str(png)],
+                       capsys)
+    assert code == 0
+    table = ts.read_table(out_file)
+    assert table["time"][-1] == pytest.approx(0.5) and table["time"].size == 2501
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_reference_writes_the_1ms_grid(tmp_path, capsys):
+    out_file = tmp_path / "ref.csv"
+    code, *_ = run(["simulate", "--method", "reference", "--duration", "0.3",
+                    "--out", str(out_file)], capsys)
+    assert code == 0
+    assert ts.read_table(out_file)["time"].size == 301
+
+
+def test_large_step_warns(capsys):
+    code, _, err = run(["simulate", "--step", "1ms"], capsys)
+    assert code == 0 and "warning" in err and "extensor" in err
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["simulate", "--step", "0.7ms"], "step"),
+    (["simulate", "--step", "abc"], "not a time"),
+    (["simulate", "--duration", "-1"], "duration"),
+    (["simulate", "--method", "euler"], "euler"),
+    (["simulate", "--model", "missing.toml"], "cannot read"),
+    (["simulate", "--out", "x.xlsx"], "--out"),
+    (["simulate", "--out", "no/such/dir/x.csv"], "does not exist"),
+])
+def test_bad_input_is_one_line_exit_2_no_file(tmp_path, monkeypatch, capsys, argv, needle):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(argv + ["--out", "run.csv"] if "--out" not in argv else argv, capsys)
+    assert code == 2
+    assert err.startswith("error:") and needle in err and err.count("\n") == 1
+    assert "Traceback" not in err
+    assert not (tmp_path / "run.csv").exists()
+
+
+def test_bad_model_file_names_the_key(tmp_path, capsys):
+    bad = tmp_path / "m.toml"
+    assert run(["model", "--out", str(bad)], capsys)[0] == 0
+    bad.write_text(bad.read_text().replace("dumbbell_mass = 5.0", "dumbbell_mass = -5.0"))
+    code, _, err = run(["simulate", "--model", str(bad), "--out", str(tmp_path / "o.csv")],
+                       capsys)
+    assert code == 2 and "body.dumbbell_mass" in err and "[0, inf)" in err
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_blow_up_exits_1_without_output(tmp_path, capsys):
+    code, _, err = run(["simulate", "--step", "0.1", "--out", str(tmp_path / "o.csv")], capsys)
+    assert code == 1 and "smaller step" in err
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_installed_entry_point(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "torquesim.cli", "simulate", "--step", "0.7ms",
+                           "--duration", "0.9"], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stderr.startswith("error: step")

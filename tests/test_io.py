@@ -1,0 +1,95 @@
+"""Model TOML files and result tables."""
+
+import math
+
+import numpy as np
+import pytest
+
+import torquesim as ts
+from torquesim.io import model_to_toml
+from torquesim.io.atomic import write_atomic
+
+
+def test_toml_round_trip_is_exact(tmp_path):
+    model = ts.default_model().replace(
+        initial_angle=math.radians(23.4), duration=2.5,
+        extensor_activation=ts.ActivationProfile(0.15, (ts.Ramp(0.1, 0.2, 0.3),)),
+        body=ts.BodyParameters(dumbbell_mass=7.25, endstop_torque=0.0))
+    path = ts.save_model(model, tmp_path / "m.toml")
+    assert ts.load_model(path) == model
+    assert ts.load_model(ts.save_model(ts.default_model(), tmp_path / "d.toml")) == \
+        ts.default_model()
+
+
+def test_partial_file_takes_defaults(tmp_path):
+    path = tmp_path / "m.toml"
+    path.write_text("[body]\ndumbbell_mass = 2\n")
+    m = ts.load_model(path)
+    assert m.body.dumbbell_mass == 2.0
+    assert m.flexor == ts.default_model().flexor
+
+
+@pytest.mark.parametrize("text, field", [
+    ("[body]\ndumbell_mass = 2\n", "body.dumbell_mass"),
+    ("[flexor]\nse_stiffness = -3\n", "flexor.se_stiffness"),
+    ("[extensor]\nisometric_torque = 'big'\n", "extensor.isometric_torque"),
+    ("duration = 0\n", "duration"),
+    ("colour = 3\n", "colour"),
+    ("[flexor.activation]\nramps = [{delay = 0.1, duration = 0, level = 0.5}]\n",
+     "flexor.activation.ramps[0].duration"),
+    ("[flexor.activation]\nramps = [{delay = 0.1, duration = 0.2, level = 1.5}]\n",
+     "flexor.activation.ramps[0].level"),
+    ("[flexor.activation]\nramps = [{delay = 0.1, level = 0.5}]\n",
+     "flexor.activation.ramps[0].duration"),
+    ("[extensor.activation]\ninitial_level = 'equilibrium'\n",
+     "extensor_activation.initial_level"),
+    ("[flexor]\nmin_differential_activation = 0.0\ndifferential_activation_rate = 0.05\n",
+     "flexor.differential_activation_rate"),
+    ("this is = = not toml", "model"),
+])
+def test_bad_files_name_the_key(tmp_path, text, field):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ts.ModelError) as info:
+        ts.load_model(path)
+    assert info.value.field == field
+    assert "\n" not in str(info.value)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ts.ModelError, match="cannot read"):
+        ts.load_model(tmp_path / "nope.toml")
+
+
+def test_toml_is_commented_with_units():
+    text = model_to_toml(ts.default_model())
+    assert "se_stiffness = 600.0  # N m/rad" in text
+    assert 'initial_level = "equilibrium"' in text
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".sto"])
+def test_result_table_round_trip(tmp_path, suffix):
+    result = ts.simulate(ts.default_model().replace(duration=0.2), "monolithic", 1e-4)
+    path = tmp_path / f"run{suffix}"
+    result.save(path)
+    table = ts.read_table(path)
+    assert list(k for k in table if not k.startswith("_")) == list(ts.COLUMNS)
+    cols = result.columns()
+    for name in ts.COLUMNS:
+        np.testing.assert_array_equal(table[name], cols[name])
+    assert (tmp_path / f"run{suffix}.manifest.json").exists()
+    if suffix == ".sto":
+        head = path.read_text().splitlines()[:7]
+        assert "inDegrees=no" in head and "endheader" in head
+        assert head[2] == f"nRows={result.time.size}" and head[3] == "nColumns=12"
+        assert table["_in_degrees"] == np.array(False)
+
+
+def test_atomic_write_leaves_nothing_on_failure(tmp_path):
+    def broken(tmp):
+        tmp.write_text("half")
+        raise RuntimeError("disk full")
+
+    with pytest.raises(RuntimeError):
+        write_atomic(tmp_path / "out.csv", broken)
+    assert list(tmp_path.iterdir()) == []
