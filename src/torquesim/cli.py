@@ -128,6 +128,51 @@ def model(out_path, model_path):
     click.echo(f"wrote {out_path}")
 
 
+def _parse_steps(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(x) * 1e-3 for x in text.split(",") if x.strip())
+    except ValueError:
+        raise ModelError("--steps", f"{text!r}: allowed a comma-separated list of steps in "
+                         "ms, e.g. 1,0.5,0.1") from None
+    if not values:
+        raise ModelError("--steps", "allowed a non-empty comma-separated list of steps in ms")
+    return values
+
+
+@cli.command()
+@click.option("--model", "model_path", type=click.Path(dir_okay=False),
+              help="Model TOML file (default: the built-in curl).")
+@click.option("--steps", default="20,10,5,2,1,0.5,0.2,0.1,0.05", show_default=True,
+              help="Fixed steps to try, in ms, comma-separated; each must divide the duration.")
+@click.option("--repeats", type=click.IntRange(1, 50), default=3, show_default=True,
+              help="Runs per setting; the median wall time is reported.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="compare-out",
+              show_default=True, help="Directory for results.csv, figures, report.html.")
+def compare(model_path, steps, repeats, out_dir):
+    """Every technique over a range of steps against the reference: accuracy, order,
+    stability and cost, and the verdict."""
+    from .io.model_file import load_model
+    from .model import default_model
+    from .solvers.simulate import step_count
+    from .study.compare import verdict, verdict_sentences
+    from .study.outputs import write_study
+
+    model = load_model(model_path) if model_path else default_model()
+    values = _parse_steps(steps)
+    for h in values:
+        step_count(model.duration, h, "--steps")
+
+    def progress(message):
+        click.echo(message, err=True)
+
+    rows, _, smooth = write_study(out_dir, model, steps=values, repeats=repeats,
+                                  progress=progress, model_source=model_path or "builtin")
+    names = list(dict.fromkeys(r["technique"] for r in rows))
+    click.echo("\n".join(verdict_sentences(verdict(rows), names)))
+    click.echo(f"wrote {out_dir}/results.csv, report.html, convergence.png, "
+               "work_precision.png, time_constants.png, manifest.json")
+
+
 def main(argv=None) -> int:
     """Entry point: one-line errors, exit code 2 for bad input, 1 for a failed run."""
     try:

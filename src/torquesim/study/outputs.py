@@ -1,0 +1,81 @@
+"""Write a comparison study to a directory: table, figures, report, manifest."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import platform
+from datetime import UTC, datetime
+from pathlib import Path
+
+from ..io.atomic import write_atomic, write_text_atomic
+from .cases import smooth_case
+from .compare import COLUMNS, Technique, observed_order, run_study
+from .report import (
+    figure_png,
+    plot_convergence,
+    plot_time_constants,
+    plot_work_precision,
+    render_report,
+)
+
+SMOOTH_STEPS = (2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4)
+
+
+def smooth_case_orders(progress=None) -> dict[str, float]:
+    """Observed orders of the fixed-step techniques on :func:`smooth_case`."""
+    from ..solvers import Coupling
+
+    model, y0 = smooth_case()
+    techniques = (Technique("monolithic", "monolithic"),
+                  Technique("partitioned", "partitioned", Coupling()),
+                  Technique("partitioned[body-first]", "partitioned", Coupling(order="body-first")),
+                  Technique("partitioned[linear]", "partitioned", Coupling(predictor="linear")),
+                  Technique("partitioned[iter=3]", "partitioned", Coupling(iterations=3)))
+    rows, _ = run_study(model, steps=SMOOTH_STEPS, tolerances=(), techniques=techniques,
+                        repeats=1, initial_state=y0, progress=progress)
+    return {t.name: observed_order(rows, t.name) for t in techniques}
+
+
+def rows_to_csv(rows) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow(COLUMNS)
+    for r in rows:
+        writer.writerow(["" if r[c] is None else (repr(r[c]) if isinstance(r[c], float)
+                                                  else r[c]) for c in COLUMNS])
+    return buf.getvalue()
+
+
+def write_study(directory, model, *, steps, repeats=3, progress=None, model_source="builtin"):
+    """Run the study on ``model`` and write results.csv, convergence.png,
+    work_precision.png, time_constants.png, report.html and manifest.json into ``directory``."""
+    from .. import __version__
+    from ..io.model_file import model_to_toml
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    rows, reference = run_study(model, steps=steps, repeats=repeats, progress=progress)
+    if progress:
+        progress("smooth case orders")
+    smooth = smooth_case_orders()
+    write_text_atomic(directory / "results.csv", rows_to_csv(rows))
+    for name, plot in (("convergence", plot_convergence), ("work_precision", plot_work_precision)):
+        png = figure_png(plot(rows))
+        write_atomic(directory / f"{name}.png", lambda p, png=png: p.write_bytes(png))
+    png = figure_png(plot_time_constants(reference))
+    write_atomic(directory / "time_constants.png", lambda p: p.write_bytes(png))
+    settings = {"steps_s": list(steps), "repeats": repeats, "model": model_source}
+    write_text_atomic(directory / "report.html",
+                      render_report(rows, reference, smooth_orders=smooth, settings=settings))
+    manifest = {"torquesim_version": __version__,
+                "created": datetime.now(UTC).isoformat(timespec="seconds"),
+                "command": "compare", "settings": settings,
+                "reference": {"method": "Radau", "rtol": 1e-11, "atol": 1e-13},
+                "smooth_case_orders": smooth,
+                "machine": {"python": platform.python_version(),
+                            "platform": platform.platform(), "processor": platform.machine()},
+                "model_toml": model_to_toml(model)}
+    write_text_atomic(directory / "manifest.json", json.dumps(manifest, indent=2) + "\n")
+    return rows, reference, smooth
