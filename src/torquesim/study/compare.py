@@ -152,7 +152,8 @@ def stability_limit(rows: list[dict], technique: str) -> float | None:
     return limit
 
 
-def verdict(rows: list[dict], targets=ACCURACY_TARGETS_DEG, cost: str = "wall_time_s") -> list[dict]:
+def verdict(rows: list[dict], targets=ACCURACY_TARGETS_DEG,
+            cost: str = "wall_time_s") -> list[dict]:
     """For each accuracy target (max angle error, degrees): the cheapest run of every technique
     that meets it, the winner and how many times cheaper it is than each other technique."""
     out = []

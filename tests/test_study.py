@@ -1,0 +1,101 @@
+"""The comparison study: verdict logic, stability limits, report, work counts."""
+
+import csv
+import math
+
+import pytest
+
+import torquesim as ts
+from torquesim.study.compare import (
+    COLUMNS,
+    observed_order,
+    run_study,
+    stability_limit,
+    verdict,
+    verdict_sentences,
+)
+
+
+def row(tech, h, err_deg, wall, exceeded=False, tol=None):
+    r = {c: None for c in COLUMNS}
+    r.update(technique=tech, h_s=h, tolerance=tol, max_error_deg=err_deg,
+             max_error_rad=math.radians(err_deg), stable=err_deg <= 1.0,
+             guard_exceeded=exceeded, wall_time_s=wall, status="success", rhs_body=1,
+             rhs_muscle=1)
+    return r
+
+
+SYNTHETIC = [
+    row("A", 1e-3, 5.0, 1.0, exceeded=True), row("A", 5e-4, 0.5, 2.0), row("A", 2.5e-4, 0.005, 4.0),
+    row("B", 1e-3, 0.05, 3.0), row("B", 5e-4, 0.0125, 6.0), row("B", 2.5e-4, 0.003125, 12.0),
+    row("C", None, 0.0001, 30.0, tol=1e-8),
+]
+
+
+def test_verdict_picks_the_cheapest_run_meeting_each_target():
+    v = {e["target_deg"]: e for e in verdict(SYNTHETIC)}
+    assert v[1.0]["winner"]["technique"] == "A" and v[1.0]["winner"]["wall_time_s"] == 2.0
+    assert v[1.0]["ratios"] == {"B": 1.5, "C": 15.0}
+    assert v[0.01]["winner"]["technique"] == "A" and v[0.01]["ratios"] == {"B": 3.0, "C": 7.5}
+    assert v[0.001]["winner"]["technique"] == "C" and v[0.001]["ratios"] == {}
+    text = verdict_sentences(verdict(SYNTHETIC), ["A", "B", "C"])
+    assert text[3].startswith("0.001°: cheapest is C") and "never reached by A, B" in text[3]
+
+
+def test_stability_limit_and_order_on_synthetic_rows():
+    assert stability_limit(SYNTHETIC, "A") == 5e-4
+    assert stability_limit(SYNTHETIC, "B") == 1e-3
+    assert observed_order(SYNTHETIC, "B") == pytest.approx(2.0)
+    assert observed_order(SYNTHETIC, "C") is None
+
+
+def test_study_on_a_short_curl_measures_what_model_md_says(tmp_path):
+    from torquesim.study.outputs import write_study
+
+    model = ts.default_model().replace(duration=0.6)
+    rows, _, smooth = write_study(tmp_path, model, steps=(1e-3, 5e-4, 2e-4, 1e-4), repeats=1)
+    by = {(r["technique"], r["h_s"]): r for r in rows}
+    # monolithic: unstable at 1 ms (bounded, wrong) and flagged; accurate below 0.25 ms
+    assert by[("monolithic", 1e-3)]["guard_exceeded"]
+    assert by[("monolithic", 1e-4)]["max_error_rad"] < 1e-7
+    # exact work counts: RK4 makes 4 evaluations per part per step
+    assert by[("monolithic", 1e-4)]["rhs_body"] == 4 * 6000
+    assert by[("partitioned[m=4]", 1e-4)]["rhs_muscle"] == 6000 * (1 + 4 * 4 - 1)
+    assert by[("partitioned[iter=3]", 1e-4)]["rhs_body"] == 3 * 4 * 6000
+    assert smooth["monolithic"] == pytest.approx(4.0, abs=0.5)
+    assert smooth["partitioned"] == pytest.approx(1.0, abs=0.2)
+    assert smooth["partitioned[linear]"] == pytest.approx(2.0, abs=0.2)
+    # the report and the table agree
+    with open(tmp_path / "results.csv") as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == len(rows) and list(table[0]) == list(COLUMNS)
+    report = (tmp_path / "report.html").read_text()
+    for sentence in verdict_sentences(verdict(rows), list(dict.fromkeys(
+            r["technique"] for r in rows))):
+        assert sentence.replace("'", "&#x27;") in report
+    first = table[0]
+    assert f"{float(first['max_error_rad']):.4g}" in report
+    assert report.count("data:image/png;base64,") == 3
+    for name in ("convergence.png", "work_precision.png", "time_constants.png",
+                 "manifest.json"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def test_partitioned_work_counts_are_exact():
+    model = ts.default_model().replace(duration=0.01)
+    for coupling, body, muscle in [(ts.Coupling(), 4, 4), (ts.Coupling(muscle_substeps=3), 4, 12),
+                                   (ts.Coupling(iterations=2), 8, 7)]:
+        r = ts.simulate(model, "partitioned", 1e-4, coupling=coupling)
+        assert (r.cost.rhs_body, r.cost.rhs_muscle) == (100 * body, 100 * muscle)
+
+
+def test_run_study_rejects_a_step_that_does_not_divide():
+    with pytest.raises(ts.ModelError):
+        run_study(ts.default_model(), steps=(7e-4,), repeats=1)
+
+
+def test_compare_cli_rejects_bad_steps(capsys):
+    from torquesim.cli import main
+
+    assert main(["compare", "--steps", "1,abc"]) == 2
+    assert "--steps" in capsys.readouterr().err
