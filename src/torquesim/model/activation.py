@@ -68,10 +68,6 @@ class ActivationProfile:
             if not isinstance(ramp, Ramp):
                 raise ModelError(f"ramps[{i}]", "must be a Ramp(delay, duration, level)")
 
-    @property
-    def parameter_count(self) -> int:
-        return 3 * len(self.ramps)
-
     def ramp_times(self) -> list[tuple[float, float]]:
         """(start, end) of every ramp, s: ramp i starts at Σ_{j<i}(delay_j + r_j) + delay_i."""
         t = 0.0

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from ..model.torque_generator import RK4_STABILITY_LIMIT
 from .compare import (
     ACCURACY_TARGETS_DEG,
     COLUMNS,
@@ -82,7 +83,8 @@ def plot_time_constants(reference):
     ax0.set_ylabel("elbow flexion (deg)")
     ax1.semilogy(reference.time, tau_f * 1e3, label="flexor τ")
     ax1.semilogy(reference.time, tau_e * 1e3, label="extensor τ")
-    ax1.semilogy(reference.time, 2.785 * np.minimum(tau_f, tau_e) * 1e3, "k:",
+    limit = RK4_STABILITY_LIMIT * np.minimum(tau_f, tau_e)
+    ax1.semilogy(reference.time, limit * 1e3, "k:",
                  label="largest stable RK4 step 2.785·min τ")
     ax1.set_ylabel("ms")
     ax1.set_xlabel("time (s)")
