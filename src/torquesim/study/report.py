@@ -25,8 +25,9 @@ def _techniques(rows):
     return list(dict.fromkeys(r["technique"] for r in rows))
 
 
-def plot_convergence(rows):
-    """Max angle error against step (log-log), one line per fixed-step technique."""
+def _loglog_by_technique(rows, x_key, y_key, *, label, xlabel, ylabel, title, lines):
+    """One log-log line per technique of ``rows[y_key]`` against ``rows[x_key]`` (x in ms);
+    ``label(name)`` names each line and ``lines`` are (y, text) reference levels."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -34,43 +35,42 @@ def plot_convergence(rows):
 
     fig, ax = plt.subplots(figsize=(8, 5.5), constrained_layout=True)
     for name in _techniques(rows):
-        pts = sorted((r["h_s"], r["max_error_rad"]) for r in rows
-                     if r["technique"] == name and r["h_s"] and math.isfinite(r["max_error_rad"]))
-        if not pts:
-            continue
-        h, e = np.array(pts).T
-        order = observed_order(rows, name)
-        label = name + (f" (slope {order:.2f})" if order is not None else "")
-        ax.loglog(h * 1e3, e, "o-", label=label)
-    ax.axhline(math.radians(STABLE_ERROR_DEG), color="grey", ls=":", lw=1)
-    ax.text(ax.get_xlim()[0], math.radians(STABLE_ERROR_DEG) * 1.2, " 1°", color="grey")
-    ax.set_xlabel("step h (ms)")
-    ax.set_ylabel("max |θ − θ_ref| (rad)")
-    ax.set_title("Convergence against the Radau reference")
+        pts = sorted((r[x_key], r[y_key]) for r in rows
+                     if r["technique"] == name and r[x_key] and math.isfinite(r[y_key]))
+        if pts:
+            x, y = np.array(pts).T
+            ax.loglog(x * 1e3, y, "o-", label=label(name))
+    for level, text in lines:
+        ax.axhline(level, color="grey", ls=":", lw=0.8)
+        ax.text(ax.get_xlim()[0], level * 1.15, f" {text}", color="grey", fontsize="small")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize="small")
     return fig
+
+
+def plot_convergence(rows):
+    """Max angle error against step (log-log), one line per fixed-step technique, labelled
+    with its fitted slope."""
+
+    def label(name):
+        order = observed_order(rows, name)
+        return name + (f" (slope {order:.2f})" if order is not None else "")
+
+    return _loglog_by_technique(
+        rows, "h_s", "max_error_rad", label=label, xlabel="step h (ms)",
+        ylabel="max |θ − θ_ref| (rad)", title="Convergence against the Radau reference",
+        lines=[(math.radians(STABLE_ERROR_DEG), f"{STABLE_ERROR_DEG:g}°")])
 
 
 def plot_work_precision(rows):
     """Max angle error against median wall time, one line per technique."""
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 5.5), constrained_layout=True)
-    for name in _techniques(rows):
-        pts = sorted((r["wall_time_s"], r["max_error_deg"]) for r in rows
-                     if r["technique"] == name and math.isfinite(r["max_error_deg"]))
-        if pts:
-            w, e = np.array(pts).T
-            ax.loglog(w * 1e3, e, "o-", label=name)
-    for target in ACCURACY_TARGETS_DEG:
-        ax.axhline(target, color="grey", ls=":", lw=0.8)
-    ax.set_xlabel("wall time (ms, median)")
-    ax.set_ylabel("max angle error (deg)")
-    ax.set_title("Work-precision")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize="small")
-    return fig
+    return _loglog_by_technique(
+        rows, "wall_time_s", "max_error_deg", label=str, xlabel="wall time (ms, median)",
+        ylabel="max angle error (deg)", title="Work-precision",
+        lines=[(t, f"{t:g}°") for t in ACCURACY_TARGETS_DEG])
 
 
 def plot_time_constants(reference):
