@@ -16,6 +16,11 @@ def reference(model):
 
 
 def max_angle_error(result, reference) -> float:
-    """Max |θ − θ_ref| (rad) on the reference grid (result sampled where the grids meet)."""
-    k = int(round((reference.time[1] - reference.time[0]) / result.step))
-    return float(np.max(np.abs(result.theta[::k] - reference.theta)))
+    """Max |θ − θ_ref| (rad) at the times both grids share (the result's step and the
+    reference's output step are multiples of one another)."""
+    ratio = (reference.time[1] - reference.time[0]) / result.step
+    if ratio >= 1:
+        k = int(round(ratio))
+        return float(np.max(np.abs(result.theta[::k] - reference.theta)))
+    k = int(round(1 / ratio))
+    return float(np.max(np.abs(result.theta - reference.theta[::k])))

@@ -129,3 +129,31 @@ def test_bad_unit_parameters_name_the_field(field, value):
         FLEXOR.__class__(**{**FLEXOR.as_dict(), field: value})
     assert info.value.field == field
     assert "allowed" in str(info.value)
+
+
+@settings(max_examples=300, deadline=None)
+@given(stretch=st.floats(-0.05, 0.6), theta_cc=st.floats(-0.5, 2.5), a=st.floats(0.0, 1.0),
+       gamma_h=st.floats(1e-6, 0.02), sign=st.sampled_from([1.0, -1.0]),
+       guess=st.floats(-30.0, 30.0), flexor=st.booleans())
+def test_implicit_stage_solves_the_ce_equation_at_its_own_state(stretch, theta_cc, a, gamma_h,
+                                                                 sign, guess, flexor):
+    """w from the implicit stage solve is the explicit CE velocity at the stage state
+    θ_cc + sign·γh·w, stretch + γh·w (clamps included), whatever the Newton guess."""
+    p = PF if flexor else PE
+    w, evaluations = tg.unit_implicit_ce_velocity(stretch, theta_cc, sign, gamma_h, a, p, guess)
+    assert -p[tg.OMEGA_MAX] <= w <= p[tg.OMEGA_MAX] and evaluations < 60
+    explicit = tg.unit_ce_velocity(stretch + gamma_h * w, theta_cc + sign * gamma_h * w, a, p)
+    # compare in torque units: the CE equation's residual, relative to the isometric torque
+    cap = max(a, tg.ACTIVATION_FLOOR) * tg.torque_angle(theta_cc + sign * gamma_h * w, p)
+    if abs(w) < p[tg.OMEGA_MAX]:
+        assert cap * tg.ce_torque_velocity(w, p) == pytest.approx(
+            p[tg.K_SE] * max(stretch + gamma_h * w, 0.0), abs=1e-9 * p[tg.T0])
+    else:
+        assert explicit == pytest.approx(w, abs=1e-6)
+
+
+def test_implicit_stage_tends_to_the_explicit_velocity_for_a_tiny_step():
+    for stretch in (0.0005, 0.05, 0.2, 0.4):
+        explicit = tg.unit_ce_velocity(stretch, 0.3, 0.3, PF)
+        implicit, _ = tg.unit_implicit_ce_velocity(stretch, 0.3, 1.0, 1e-12, 0.3, PF, 0.0)
+        assert implicit == pytest.approx(explicit, rel=1e-7, abs=1e-9)

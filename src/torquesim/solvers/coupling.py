@@ -12,6 +12,7 @@ from . import fixed_step as fs
 ORDERS = {"jacobi": fs.JACOBI, "body-first": fs.BODY_FIRST, "muscles-first": fs.MUSCLES_FIRST,
           "every-stage": fs.EVERY_STAGE}
 PREDICTORS = {"hold": fs.HOLD, "linear": fs.LINEAR}
+MUSCLE_SOLVERS = {"rk4": fs.EXPLICIT_RK4, "sdirk2": fs.SDIRK2}
 
 
 @dataclass(frozen=True)
@@ -38,6 +39,12 @@ class Coupling:
     tolerance : float
         Stop sweeping when the end-of-step state changes by less than this (rad); 0 means
         always make ``iterations`` sweeps. Default 0. Bounds [0, inf).
+    muscle_solver : str
+        How the muscle part is integrated over a step: ``"rk4"`` (default, explicit classical
+        RK4, stable only for step/τ ≤ 2.785) or ``"sdirk2"`` (the L-stable two-stage SDIRK
+        method of order 2, one scalar implicit equation per unit and stage solved by
+        safeguarded Newton: no stability limit from the muscles). ``"sdirk2"`` with the body
+        on explicit RK4 is the IMEX technique.
     """
 
     order: str = "jacobi"
@@ -45,10 +52,17 @@ class Coupling:
     muscle_substeps: int = 1
     iterations: int = 1
     tolerance: float = 0.0
+    muscle_solver: str = "rk4"
 
     def __post_init__(self) -> None:
         if self.order not in ORDERS:
             raise ModelError("order", f"{self.order!r} is not one of {', '.join(ORDERS)}")
+        if self.muscle_solver not in MUSCLE_SOLVERS:
+            raise ModelError("muscle_solver", f"{self.muscle_solver!r} is not one of "
+                             f"{', '.join(MUSCLE_SOLVERS)}")
+        if self.order == "every-stage" and self.muscle_solver != "rk4":
+            raise ModelError("muscle_solver", "order 'every-stage' is monolithic RK4; "
+                             "allowed muscle_solver there: rk4")
         if self.predictor not in PREDICTORS:
             raise ModelError("predictor",
                              f"{self.predictor!r} is not one of {', '.join(PREDICTORS)}")
@@ -66,7 +80,12 @@ class Coupling:
         a[fs.MUSCLE_SUBSTEPS] = self.muscle_substeps
         a[fs.ITERATIONS] = self.iterations
         a[fs.TOLERANCE] = self.tolerance
+        a[fs.MUSCLE_SOLVER] = MUSCLE_SOLVERS[self.muscle_solver]
         return a
+
+    @property
+    def implicit_muscles(self) -> bool:
+        return self.muscle_solver != "rk4"
 
     def label(self) -> str:
         """Short name, e.g. ``partitioned`` or ``partitioned[body-first,linear,m=4]``."""
@@ -80,4 +99,12 @@ class Coupling:
         if self.iterations != 1:
             parts.append(f"iter={self.iterations}" + (f",tol={self.tolerance:g}"
                                                        if self.tolerance else ""))
+        if self == IMEX:
+            return "imex"
+        if self.implicit_muscles:
+            parts.append(self.muscle_solver)
         return "partitioned" + (f"[{','.join(parts)}]" if parts else "")
+
+
+#: The IMEX technique (``method="imex"``): body on explicit RK4, muscles on implicit SDIRK2.
+IMEX = Coupling(order="body-first", predictor="linear", muscle_solver="sdirk2")

@@ -16,22 +16,26 @@ import numpy as np
 from numba import njit
 
 from ..model.activation import activation
-from ..model.torque_generator import unit_time_constant
+from ..model.torque_generator import unit_implicit_ce_velocity, unit_time_constant
 from .rates import body_rates, elbow_rates, muscle_rates, net_muscle_torque
 
 # Indices of the stats array returned by the loops.
-STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS = range(8)
-STATS_SIZE = 8
+STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
+    UNIT_SOLVES = range(9)
+STATS_SIZE = 9
 # Status codes.
 OK, NON_FINITE, DIVERGED = 0, 1, 2
 #: |ω| above this (rad/s) counts as divergence: no elbow moves at 1000 rad/s.
 DIVERGENCE_OMEGA = 1.0e3
 
 # Coupling scheme array layout (see torquesim.solvers.coupling.Coupling).
-ORDER, PREDICTOR, MUSCLE_SUBSTEPS, ITERATIONS, TOLERANCE = range(5)
-COUPLING_SIZE = 5
+ORDER, PREDICTOR, MUSCLE_SUBSTEPS, ITERATIONS, TOLERANCE, MUSCLE_SOLVER = range(6)
+COUPLING_SIZE = 6
 JACOBI, BODY_FIRST, MUSCLES_FIRST, EVERY_STAGE = 0, 1, 2, 3
 HOLD, LINEAR = 0, 1
+EXPLICIT_RK4, SDIRK2 = 0, 1
+#: Diagonal coefficient γ = 1 − 1/√2 of the L-stable two-stage SDIRK method of order 2.
+SDIRK_GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -143,6 +147,59 @@ def _muscle_rk4(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe,
 
 
 @njit(cache=True, error_model="numpy")
+def _muscle_sdirk2(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe, af, ae,
+                   stats):
+    """``substeps`` steps of the muscle part over [t, t + h] by the L-stable two-stage SDIRK
+    method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h; stiffly accurate), each
+    unit's stage equation solved by :func:`unit_implicit_ce_velocity`. Joint angle
+    θ(s) = θ0 + slope·s/h. With this the muscle part has no step-size stability limit.
+
+    ``start_rate`` (the explicit rates at the step start) seeds Newton's method. Each unit
+    residual evaluation is counted in ``stats[UNIT_SOLVES]``.
+    """
+    hs = h / substeps
+    gh = SDIRK_GAMMA * hs
+    rate = theta_slope / h
+    guess_f, guess_e = start_rate[0], -start_rate[1]
+    solves = 0
+    for j in range(substeps):
+        s = j * hs
+        ts = t + s
+        # Stage 1 at t + γh: θ_cc = θ_cc,n + γh·(dθ_cc/dt)_1.
+        th1 = theta0 + rate * (s + gh)
+        w_f1, n_f = unit_implicit_ce_velocity(tf - th1, tf, 1.0, gh, activation(ts + gh, af),
+                                              pf, guess_f)
+        w_e1, n_e = unit_implicit_ce_velocity(th1 - te, te, -1.0, gh, activation(ts + gh, ae),
+                                              pe, guess_e)
+        solves += n_f + n_e
+        # Stage 2 at t + h: θ_cc = θ_cc,n + (1 − γ)h·(dθ_cc/dt)_1 + γh·(dθ_cc/dt)_2.
+        th2 = theta0 + rate * (s + hs)
+        xf = tf + (hs - gh) * w_f1
+        xe = te - (hs - gh) * w_e1
+        w_f2, n_f = unit_implicit_ce_velocity(xf - th2, xf, 1.0, gh, activation(ts + hs, af),
+                                              pf, w_f1)
+        w_e2, n_e = unit_implicit_ce_velocity(th2 - xe, xe, -1.0, gh, activation(ts + hs, ae),
+                                              pe, w_e1)
+        solves += n_f + n_e
+        tf = xf + gh * w_f2
+        te = xe - gh * w_e2
+        guess_f, guess_e = w_f2, w_e2
+    stats[UNIT_SOLVES] += solves
+    return tf, te
+
+
+@njit(cache=True, error_model="numpy")
+def _muscle_step(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe, af, ae,
+                 implicit, stats):
+    """Advance the muscle part over one body step with explicit RK4 or implicit SDIRK2."""
+    if implicit:
+        return _muscle_sdirk2(t, tf, te, h, substeps, theta0, theta_slope, start_rate,
+                              pf, pe, af, ae, stats)
+    stats[NFEV_MUSCLE] += 4 * substeps - 1
+    return _muscle_rk4(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe, af, ae)
+
+
+@njit(cache=True, error_model="numpy")
 def _stage_exchange_step(t, th, om, tf, te, h, b, pf, pe, af, ae):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
@@ -186,6 +243,7 @@ def rk4_partitioned(y0, h, n_steps, b, pf, pe, af, ae, coupling, out, stats):
     substeps = int(coupling[MUSCLE_SUBSTEPS])
     sweeps = int(coupling[ITERATIONS])
     tol = coupling[TOLERANCE]
+    implicit_muscles = int(coupling[MUSCLE_SOLVER]) == SDIRK2
     th, om, tf, te = y0[0], y0[1], y0[2], y0[3]
     out[0, 0], out[0, 1], out[0, 2], out[0, 3] = th, om, tf, te
     th_prev = th
@@ -213,8 +271,8 @@ def rk4_partitioned(y0, h, n_steps, b, pf, pe, af, ae, coupling, out, stats):
             for sweep in range(sweeps):
                 old = (th1, om1, tf1, te1)
                 if order == MUSCLES_FIRST:
-                    tf1, te1 = _muscle_rk4(t, tf, te, h, substeps, th, theta_slope, rate,
-                                           pf, pe, af, ae)
+                    tf1, te1 = _muscle_step(t, tf, te, h, substeps, th, theta_slope, rate,
+                                            pf, pe, af, ae, implicit_muscles, stats)
                     torque_slope = net_muscle_torque(th + theta_slope, tf1, te1, pf, pe) \
                         - torque_n
                     th1, om1 = _body_rk4(th, om, h, torque_n, torque_slope, b)
@@ -222,10 +280,9 @@ def rk4_partitioned(y0, h, n_steps, b, pf, pe, af, ae, coupling, out, stats):
                     th1, om1 = _body_rk4(th, om, h, torque_n, torque_slope, b)
                     if order == BODY_FIRST:
                         theta_slope = th1 - th
-                    tf1, te1 = _muscle_rk4(t, tf, te, h, substeps, th, theta_slope, rate,
-                                           pf, pe, af, ae)
+                    tf1, te1 = _muscle_step(t, tf, te, h, substeps, th, theta_slope, rate,
+                                            pf, pe, af, ae, implicit_muscles, stats)
                 stats[NFEV_BODY] += 4
-                stats[NFEV_MUSCLE] += 4 * substeps - 1
                 stats[SWEEPS] += 1
                 # Later sweeps see the other part's end-of-step values (waveform relaxation).
                 theta_slope = th1 - th

@@ -79,16 +79,17 @@ class StabilityReport:
     time: float
     unit: str
     step: float
+    limit: float = RK4_STABILITY_LIMIT
 
     @property
     def exceeded(self) -> bool:
-        return self.max_step_ratio > RK4_STABILITY_LIMIT
+        return self.max_step_ratio > self.limit
 
     @property
     def largest_safe_step(self) -> float:
-        if self.max_step_ratio <= 0.0:
+        if self.max_step_ratio <= 0.0 or math.isinf(self.limit):
             return math.inf
-        safe = RK4_STABILITY_LIMIT * self.step / self.max_step_ratio
+        safe = self.limit * self.step / self.max_step_ratio
         return min(safe, 0.5 * self.step) if self.exceeded else safe
 
     def message(self) -> str:

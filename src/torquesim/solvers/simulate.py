@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time as _time
 
 import numpy as np
@@ -9,12 +10,13 @@ from scipy.integrate import BDF, DOP853, LSODA, RK45, Radau
 
 from ..errors import ModelError, SimulationError, check_range
 from ..model.elbow import ElbowModel, default_model
+from ..model.torque_generator import RK4_STABILITY_LIMIT
 from . import fixed_step as fs
-from .coupling import Coupling
+from .coupling import IMEX, Coupling
 from .rates import elbow_rates
 from .result import UNIT_NAMES, RunCost, SimulationResult, StabilityReport
 
-FIXED_STEP_METHODS = ("monolithic", "partitioned")
+FIXED_STEP_METHODS = ("monolithic", "partitioned", "imex")
 #: SciPy solvers usable on the whole system (``scipy:NAME``); ``reference`` is Radau.
 SCIPY_SOLVERS = {"RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
 SCIPY_METHODS = tuple(SCIPY_SOLVERS)
@@ -79,6 +81,11 @@ def simulate(
     packed = model.pack()
     y0 = model.initial_state().state if initial_state is None else _check_state(initial_state)
     if method in FIXED_STEP_METHODS:
+        if method == "imex":
+            coupling = coupling or IMEX
+            if not coupling.implicit_muscles:
+                raise ModelError("coupling.muscle_solver", "method 'imex' needs an implicit "
+                                 "muscle solver; allowed: sdirk2")
         result = _fixed_step(model, packed, y0, method, step, coupling or Coupling())
     elif method == "reference" or method.startswith("scipy:"):
         name = "Radau" if method == "reference" else method.split(":", 1)[1]
@@ -114,13 +121,16 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     else:
         fs.rk4_partitioned(*args, coupling.to_array(), out, stats)
         label = coupling.label()
+        method = "partitioned"
     wall = _time.perf_counter() - start
     done = int(stats[fs.STEPS])
     times = np.arange(done + 1) * step
+    implicit = method == "partitioned" and coupling.implicit_muscles
     stability = StabilityReport(float(stats[fs.WORST_RATIO]), float(stats[fs.WORST_TIME]),
                                 UNIT_NAMES[int(stats[fs.WORST_UNIT])],
                                 step / (coupling.muscle_substeps if method == "partitioned"
-                                        else 1))
+                                        else 1),
+                                math.inf if implicit else RK4_STABILITY_LIMIT)
     status, message = "success", ""
     if stats[fs.STATUS] != fs.OK:
         what = "went non-finite" if stats[fs.STATUS] == fs.NON_FINITE else \
@@ -131,7 +141,9 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
                    f"{stability.largest_safe_step * 1e3:.3g} ms) or method 'reference'")
     elif stability.exceeded:
         message = stability.message()
-    cost = RunCost(done, int(stats[fs.NFEV_BODY]), int(stats[fs.NFEV_MUSCLE]), wall)
+    # An implicit unit solve evaluates one unit: two of them count as one muscle evaluation.
+    cost = RunCost(done, int(stats[fs.NFEV_BODY]),
+                   int(stats[fs.NFEV_MUSCLE] + math.ceil(stats[fs.UNIT_SOLVES] / 2)), wall)
     settings = {"step": step, "steps": n}
     if method == "partitioned":
         settings["coupling"] = coupling.__dict__.copy()

@@ -17,6 +17,7 @@ from scipy.stats import linregress
 
 from ..model.elbow import ElbowModel
 from ..solvers import Coupling, simulate
+from ..solvers.coupling import IMEX
 from ..solvers.simulate import step_count
 
 DEFAULT_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.2e-3, 0.1e-3, 0.05e-3)
@@ -48,7 +49,8 @@ class Technique:
 
 
 def default_techniques() -> tuple[Technique, ...]:
-    """The abstract's two techniques, the partitioned variants and two adaptive solvers."""
+    """The abstract's two techniques, the partitioned variants, IMEX (body explicit RK4,
+    muscles implicit SDIRK2) and two adaptive solvers."""
     return (
         Technique("monolithic", "monolithic"),
         Technique("partitioned", "partitioned", Coupling()),
@@ -56,6 +58,7 @@ def default_techniques() -> tuple[Technique, ...]:
         Technique("partitioned[linear]", "partitioned", Coupling(predictor="linear")),
         Technique("partitioned[m=4]", "partitioned", Coupling(muscle_substeps=4)),
         Technique("partitioned[iter=3]", "partitioned", Coupling(iterations=3)),
+        Technique("imex", "imex", IMEX),
         Technique("DOP853", "scipy:DOP853"),
         Technique("Radau", "scipy:Radau"),
     )
