@@ -1,0 +1,115 @@
+"""Read a measured elbow angle history: CSV, or OpenSim storage (.mot/.sto)."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelError
+
+UNITS = ("deg", "rad")
+#: Fewest samples a target may have.
+MIN_SAMPLES = 5
+
+
+def _fail(path: Path, message: str) -> ModelError:
+    return ModelError("target", f"{path.name}: {message}")
+
+
+def _pick_column(path: Path, header: list[str], column: str | None) -> int:
+    names = [h.strip() for h in header]
+    if column is not None:
+        if column not in names:
+            raise _fail(path, f"no column {column!r}; allowed: {', '.join(names[1:])}")
+        return names.index(column)
+    others = [n for n in names if n.lower() != "time"]
+    elbow = [n for n in others if "elbow" in n.lower()]
+    if len(others) == 1:
+        return names.index(others[0])
+    if len(elbow) == 1:
+        return names.index(elbow[0])
+    raise _fail(path, f"several angle columns; choose one with --column: {', '.join(others)}")
+
+
+def _number(path: Path, text: str, line: int, column: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise _fail(path, f"line {line}, column {column!r}: {text.strip()!r} is not a "
+                          "number") from None
+    if not math.isfinite(value):
+        raise _fail(path, f"line {line}, column {column!r}: {text.strip()!r} is not finite "
+                          "(NaN or inf); allowed: finite numbers")
+    return value
+
+
+def read_angle_history(path, column: str | None = None,
+                       units: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """Time (s) and elbow angle (rad) from a CSV or OpenSim ``.mot``/``.sto`` file.
+
+    CSV: a header row with ``time`` and the angle column (``column``; optional when the file
+    has one angle column, or exactly one whose name contains "elbow"); ``units`` is ``"deg"``
+    (default) or ``"rad"``. Storage files: header lines up to ``endheader``, then
+    tab/space-separated columns; ``inDegrees=yes|no`` in the header gives the units (an
+    explicit ``units`` that contradicts it is an error; without the key ``units`` applies,
+    default degrees). Time must increase strictly; every cell must be a finite number.
+    Errors name the file, line and column. Returns (time, angle_rad, column_name).
+    """
+    path = Path(path)
+    if units is not None and units not in UNITS:
+        raise ModelError("units", f"{units!r}; allowed: {', '.join(UNITS)}")
+    try:
+        lines = path.read_text(encoding="utf-8-sig").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError("target", f"cannot read {str(path)!r}: "
+                         f"{getattr(exc, 'strerror', None) or exc}") from None
+    suffix = path.suffix.lower()
+    first = 0
+    if suffix in (".mot", ".sto"):
+        in_degrees = None
+        for i, line in enumerate(lines):
+            key = line.strip().lower().replace(" ", "")
+            if key.startswith("indegrees="):
+                in_degrees = key.split("=", 1)[1] == "yes"
+            if key == "endheader":
+                first = i + 1
+                break
+        else:
+            raise _fail(path, "no 'endheader' line; allowed: an OpenSim storage file")
+        if in_degrees is not None:
+            stated = "deg" if in_degrees else "rad"
+            if units is not None and units != stated:
+                raise _fail(path, f"header says inDegrees={'yes' if in_degrees else 'no'} "
+                                  f"but --units is {units}")
+            units = stated
+        rows = [(i + 1, line.split()) for i, line in enumerate(lines) if i >= first]
+    elif suffix in (".csv", ".txt"):
+        rows = [(i + 1, r) for i, r in enumerate(csv.reader(lines))]
+    else:
+        raise ModelError("target", f"{path.name}: unknown file type {suffix!r}; allowed: "
+                         ".csv, .mot, .sto or builtin:curl")
+    rows = [(n, r) for n, r in rows if r and any(c.strip() for c in r)]
+    if not rows:
+        raise _fail(path, "is empty")
+    header_line, header = rows[0]
+    names = [h.strip() for h in header]
+    if "time" not in [n.lower() for n in names]:
+        raise _fail(path, f"line {header_line}: no 'time' column in the header")
+    t_col = [n.lower() for n in names].index("time")
+    a_col = _pick_column(path, header, column)
+    time, angle = [], []
+    for line_no, row in rows[1:]:
+        if len(row) != len(names):
+            raise _fail(path, f"line {line_no}: {len(row)} cells, the header has {len(names)}")
+        time.append(_number(path, row[t_col], line_no, names[t_col]))
+        angle.append(_number(path, row[a_col], line_no, names[a_col]))
+        if len(time) > 1 and time[-1] <= time[-2]:
+            raise _fail(path, f"line {line_no}, column {names[t_col]!r}: time "
+                              f"{time[-1]!r} does not increase (previous {time[-2]!r})")
+    if len(time) < MIN_SAMPLES:
+        raise _fail(path, f"{len(time)} samples; allowed at least {MIN_SAMPLES}")
+    angle_rad = np.radians(angle) if (units or "deg") == "deg" else np.array(angle)
+    return np.array(time), angle_rad, names[a_col]
