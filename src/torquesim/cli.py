@@ -177,10 +177,137 @@ def compare(model_path, steps, repeats, out_dir):
                "work_precision.png, time_constants.png, manifest.json")
 
 
+def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float, ...]]:
+    """``NAME=V`` (count 1) or ``NAME=LO,HI`` (count 2) options as a dict."""
+    out = {}
+    for text in values:
+        name, _, rest = text.partition("=")
+        try:
+            numbers = tuple(float(v) for v in rest.split(","))
+        except ValueError:
+            numbers = ()
+        if not name or len(numbers) != count:
+            shape = "NAME=VALUE" if count == 1 else "NAME=LOW,HIGH"
+            raise ModelError(option, f"{text!r}: allowed {shape}, e.g. "
+                             + ("flexor.ramp1.delay=0.05" if count == 1
+                                else "flexor.ramp1.delay=0,0.5"))
+        out[name.strip()] = numbers
+    return out
+
+
+@cli.command()
+@click.option("--target", "target_spec", default="builtin:curl", show_default=True,
+              help="Measured motion: a .csv (columns time and an angle) or OpenSim .mot/.sto "
+                   "file, or builtin:curl (MODEL.md §6 min-jerk curl 10°→135°→10°).")
+@click.option("--column", help="Angle column of the target (default: the only angle column, "
+                               "or the only one whose name contains 'elbow').")
+@click.option("--units", type=click.Choice(["deg", "rad"]),
+              help="Units of the target angle (CSV default deg; .mot/.sto: inDegrees).")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False),
+              help="Model TOML whose body and torque generators are used (default built-in).")
+@click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
+              default="imex", show_default=True,
+              help="Technique inside the fit. Explicit RK4 (monolithic, partitioned) needs "
+                   "a step ≤ ~0.25 ms on the default model; runs that break its stability "
+                   "limit score as failed.")
+@click.option("--step", type=TIME, default="5ms", show_default=True,
+              help="Fixed step (s; ms/us suffixes); the largest step not above it that "
+                   "divides the target's span is used.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True)
+@click.option("--generations", type=click.IntRange(0, 100_000), default=300,
+              show_default=True, help="Differential-evolution generations.")
+@click.option("--population", type=click.IntRange(2, 100), default=10, show_default=True,
+              help="Population per free parameter.")
+@click.option("--polish", type=click.IntRange(0, 10**7), default=4000, show_default=True,
+              help="Nelder-Mead simulations after the search.")
+@click.option("--max-time", type=TIME, default=None,
+              help="Optional wall-time cap (s); a capped fit depends on machine speed.")
+@click.option("--extensor-rest", type=float, default=0.1, show_default=True,
+              help="Extensor initial (rest) activation, not fitted.")
+@click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW,HIGH",
+              help="Change a parameter's bounds (repeatable), e.g. flexor.ramp1.delay=0,0.5. "
+                   "Defaults: delays 0-1 s, durations 0.05-0.8 s, levels 0-1.")
+@click.option("--freeze", "frozen", multiple=True, metavar="NAME=VALUE",
+              help="Hold a parameter fixed (repeatable), e.g. extensor.ramp1.level=0.1.")
+@click.option("--weight-velocity", type=float, default=0.0, show_default=True,
+              help="Weight of the RMS angular-velocity error (deg/s x 1 s) in the objective.")
+@click.option("--weight-end", type=float, default=0.0, show_default=True,
+              help="Weight of the end angle and velocity errors in the objective.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="fit-out",
+              show_default=True, help="Directory for the fitted model, table, figure, summary "
+                                      "and checkpoint.")
+@click.option("--resume", is_flag=True, help="Continue from OUT/fit_checkpoint.npz.")
+def fit(target_spec, column, units, model_path, method, step, seed, generations, population,
+        polish, max_time, extensor_rest, bounds, frozen, weight_velocity, weight_end, out_dir,
+        resume):
+    """Fit both units' activation ramps (18 parameters) to a measured elbow motion.
+
+    Inverse-dynamics start, differential evolution, Nelder-Mead polish; the result is
+    re-simulated with the reference solver. Ctrl-C or SIGTERM writes the best so far and a
+    checkpoint; --resume continues.
+    """
+    import signal
+
+    from .fitting import FitProblem, ParameterSpace, SearchSettings, load_target, run_fit
+    from .fitting.fit import load_checkpoint
+    from .fitting.outputs import CHECKPOINT_FILE, summarise, summary_lines, write_outputs
+    from .io.model_file import load_model
+
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ModelError("--out", f"{out_dir!r} is a file; allowed: a directory")
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise ModelError("--out", f"directory {str(out.parent)!r} does not exist")
+    target = load_target(target_spec, column, units)
+    space = ParameterSpace(extensor_rest=extensor_rest)
+    for name, (low, high) in _parse_assignments(bounds, "--bound", 2).items():
+        space = space.with_bounds(name, low, high)
+    for name, (value,) in _parse_assignments(frozen, "--freeze", 1).items():
+        space = space.with_frozen(name, value)
+    settings = SearchSettings(seed=seed, generations=generations,
+                              population_per_parameter=population, polish_simulations=polish,
+                              max_time=max_time)
+    base = load_model(model_path) if model_path else None
+    problem = FitProblem(target, space, base, method, step, weight_velocity, weight_end)
+    checkpoint = out / CHECKPOINT_FILE
+    state = None
+    if resume:
+        if not checkpoint.is_file():
+            raise ModelError("--resume", f"no checkpoint {str(checkpoint)!r}; allowed: the "
+                             "--out directory of an earlier fit")
+        state = load_checkpoint(checkpoint, problem)
+    out.mkdir(exist_ok=True)
+    stop = []
+
+    def request_stop(signum, _frame):
+        stop.append(signum)
+        click.echo("stopping: finishing the current generation, then writing the best so "
+                   "far", err=True)
+
+    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
+                                                                 signal.SIGTERM)}
+    try:
+        outcome = run_fit(problem, settings, checkpoint=checkpoint, resume=state,
+                          progress=lambda msg: click.echo(msg, err=True),
+                          should_stop=lambda: bool(stop))
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    summary = summarise(problem, outcome, settings)
+    files = write_outputs(out, problem, outcome, summary)
+    click.echo("\n".join(summary_lines(summary)))
+    click.echo(f"wrote {out_dir}/: {', '.join(files)}, {CHECKPOINT_FILE}")
+    if outcome.interrupted:
+        click.echo(f"interrupted: best so far written; continue with --resume --out {out_dir}",
+                   err=True)
+        return 130
+    return 0
+
+
 def main(argv=None) -> int:
     """Entry point: one-line errors, exit code 2 for bad input, 1 for a failed run."""
     try:
-        cli.main(args=argv, prog_name="torquesim", standalone_mode=False)
+        code = cli.main(args=argv, prog_name="torquesim", standalone_mode=False)
     except click.exceptions.Abort:
         click.echo("aborted", err=True)
         return 130
@@ -193,7 +320,7 @@ def main(argv=None) -> int:
     except SimulationError as exc:
         click.echo(f"error: {exc}", err=True)
         return 1
-    return 0
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -171,6 +171,11 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
         problem.failed_simulations = int(state["failed"])
         prior_wall = float(state.get("wall_time", 0.0))
         state["history"] = [list(h) for h in np.atleast_2d(state["history"])]
+        # A larger budget than the checkpoint's reopens the search or the polish.
+        if int(state["generations_done"]) < settings.generations:
+            state["stage"] = "search"
+        elif int(state["polish_done"]) < settings.polish_simulations:
+            state["stage"] = "polish"
         say(f"resuming at {state['stage']}: {state['generations_done']} generations, "
             f"best {float(state['best_score']):.3f} deg RMS")
     base = np.array(state["initial_x"], dtype=float)
@@ -205,6 +210,9 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
     remaining = settings.generations - int(state["generations_done"])
     if state["stage"] == "search" and remaining > 0:
         bounds = space.bounds()
+        if resume is not None:  # the best so far (perhaps from a polish) takes part
+            state["population"] = np.array(state["population"], dtype=float)
+            state["population"][-1] = np.asarray(state["best_x"])[free]
 
         def on_generation(intermediate_result):
             state["generations_done"] += 1
@@ -227,8 +235,7 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
                                                           int(state["generations_done"])]),
             vectorized=True, updating="deferred", polish=False, tol=0.0,
             mutation=(0.5, 1.0), recombination=0.9, callback=on_generation)
-        problem_sims = problem.simulations
-        state["simulations"] = problem_sims
+        state["simulations"] = problem.simulations
     if not interrupted[0] and not out_of_time() and state["stage"] == "search":
         state["stage"] = "polish"
         save(force=True)

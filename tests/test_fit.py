@@ -1,0 +1,264 @@
+"""Fitting: target readers, the objective, recovery of known profiles, freezing, resume,
+the stability guard inside the fit, and the CLI."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import torquesim as ts
+from torquesim.cli import main
+from torquesim.fitting import (
+    FitProblem,
+    ParameterSpace,
+    SearchSettings,
+    Target,
+    load_target,
+    min_jerk_curl,
+    run_fit,
+)
+from torquesim.fitting.fit import load_checkpoint
+from torquesim.fitting.objective import FAILED_SCORE, sample_motion, score_motion
+from torquesim.fitting.parameters import PARAMETER_NAMES, profiles, vector
+
+# A known activation pattern: flexor burst and release, mild extensor co-contraction.
+TRUE_X = np.array([0.05, 0.3, 0.5, 0.3, 0.4, 0.25, 0.1, 0.2, 0.3,
+                   0.2, 0.3, 0.15, 0.2, 0.3, 0.1, 0.1, 0.2, 0.1])
+QUICK = SearchSettings(generations=30, population_per_parameter=8, polish_simulations=1000)
+
+
+@pytest.fixture(scope="module")
+def synthetic_target():
+    """1.5 s motion (20° → ~70°) simulated with the reference solver from TRUE_X."""
+    flexor, extensor = profiles(TRUE_X, 0.1)
+    model = ts.default_model().replace(flexor_activation=flexor, extensor_activation=extensor,
+                                       duration=1.5, initial_angle=math.radians(20))
+    ref = ts.simulate(model, "reference", output_step=0.01)
+    return Target(ref.time + 2.0, ref.theta, "synthetic")  # a target need not start at 0
+
+
+# ---------------------------------------------------------------- targets
+
+def test_builtin_curl_is_model_md_min_jerk():
+    target = min_jerk_curl()
+    assert np.degrees(target.angle[[0, 150, -1]]) == pytest.approx([10, 135, 10])
+    assert target.duration == pytest.approx(3.0)
+    assert np.max(np.abs(target.angular_velocity())) == pytest.approx(2.727, abs=2e-3)
+    assert load_target("builtin:curl").time.size == target.time.size
+
+
+def _write(path, text):
+    path.write_text(text, encoding="utf-8")
+    return str(path)
+
+
+def test_csv_target_in_degrees_and_radians(tmp_path):
+    rows = "\n".join(f"{0.01 * i},{10 + i},{math.radians(10 + i)}" for i in range(6))
+    path = _write(tmp_path / "t.csv", "time,elbow_deg,elbow_rad\n" + rows + "\n")
+    deg = load_target(path, column="elbow_deg", units="deg")
+    rad = load_target(path, column="elbow_rad", units="rad")
+    assert deg.angle == pytest.approx(rad.angle)
+    assert math.degrees(deg.angle[2]) == pytest.approx(12.0)
+
+
+@pytest.mark.parametrize("flag, scale", [("yes", 1.0), ("no", math.pi / 180)])
+def test_mot_target_honours_in_degrees(tmp_path, flag, scale):
+    body = "\n".join(f"{0.01 * i}\t{(30 + i) * scale}\t0.0" for i in range(6))
+    path = _write(tmp_path / "t.mot", f"trial\nversion=1\nnRows=6\nnColumns=3\n"
+                  f"inDegrees={flag}\nendheader\ntime\tr_elbow_flex\tpro_sup\n{body}\n")
+    target = load_target(path)  # picks the one column whose name has 'elbow'
+    assert math.degrees(target.angle[1]) == pytest.approx(31.0)
+    assert "r_elbow_flex" in target.source
+
+
+@pytest.mark.parametrize("text, suffix, column, match", [
+    ("time,a\n0,1\n0.01,nan\n0.02,3\n0.03,4\n0.04,5\n", ".csv", "a", r"line 3, column 'a'.*NaN"),
+    ("time,a\n0,1\n0.01,x\n0.02,3\n0.03,4\n0.04,5\n", ".csv", "a", r"line 3.*'x' is not a number"),
+    ("time,a\n0,1\n0.01,2\n0.02,3\n0.03,4\n0.04,5\n", ".csv", "b", r"no column 'b'"),
+    ("time,a\n0,1\n0.02,2\n0.01,3\n0.03,4\n0.04,5\n", ".csv", "a", r"line 4.*does not increase"),
+    ("time,a\n0,1\n0.01,2\n", ".csv", "a", r"2 samples; allowed at least 5"),
+    ("time,a,b\n0,1,1\n0.01,2,2\n", ".csv", None, r"several angle columns"),
+    ("a,b\n0,1\n", ".csv", None, r"no 'time' column"),
+    ("time\ta\n0\t1\n", ".mot", "a", r"no 'endheader'"),
+    ("inDegrees=yes\nendheader\ntime\ta\n0\t1\n0.1\t2\t3\n", ".mot", "a", r"line 5: 3 cells"),
+])
+def test_bad_target_files_name_file_line_and_column(tmp_path, text, suffix, column, match):
+    path = _write(tmp_path / f"bad{suffix}", text)
+    with pytest.raises(ts.ModelError, match=match) as info:
+        load_target(path, column=column)
+    assert info.value.field == "target" and f"bad{suffix}" in str(info.value)
+
+
+def test_bad_target_via_cli_is_one_line_exit_2(tmp_path, capsys):
+    path = _write(tmp_path / "bad.csv", "time,a\n0,1\n0.01,oops\n")
+    assert main(["fit", "--target", path, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "line 3" in err and "'a'" in err
+    assert not (tmp_path / "o").exists()
+
+
+# ---------------------------------------------------------------- objective
+
+def test_hermite_sampling_is_exact_for_a_cubic_motion():
+    step = 0.1
+    t = np.arange(11) * step
+    states = np.zeros((11, 4))
+    states[:, 0] = 1 + t - 2 * t**2 + 0.5 * t**3
+    states[:, 1] = 1 - 4 * t + 1.5 * t**2
+    times = np.array([0.0, 0.037, 0.55, 0.999, 1.0])
+    theta, omega = np.empty(5), np.empty(5)
+    sample_motion(states, step, times, theta, omega)
+    assert theta == pytest.approx(1 + times - 2 * times**2 + 0.5 * times**3, abs=1e-12)
+
+
+def test_score_is_rms_in_degrees_plus_weighted_terms():
+    target = np.zeros(4)
+    theta = np.radians([1.0, -1.0, 1.0, -1.0])
+    omega = np.radians([2.0, 2.0, 2.0, 2.0])
+    assert score_motion(theta, omega, target, target, 0.0, 0.0) == pytest.approx((1.0, 1.0))
+    assert score_motion(theta, omega, target, target, 0.5, 0.0)[0] == pytest.approx(2.0)
+    assert score_motion(theta, omega, target, target, 0.0, 1.0)[0] == pytest.approx(4.0)
+
+
+def test_fit_problem_reproduces_the_simulator(synthetic_target):
+    """The compiled objective of TRUE_X equals the RMS of an ordinary simulate() run."""
+    problem = FitProblem(synthetic_target, step=2.5e-3)
+    score, failed = problem.evaluate(TRUE_X)
+    run = ts.simulate(problem.model_for(TRUE_X), "imex", problem.step)
+    assert not failed[0]
+    assert score[0] == pytest.approx(problem.errors_deg(run)[0], rel=1e-9)
+    assert score[0] < 0.05  # IMEX at 2.5 ms vs the reference-made target
+
+
+def test_explicit_rk4_past_its_limit_scores_as_failed():
+    """MODEL.md §5 inside the fit: monolithic RK4 at 5 ms breaks the stability limit on the
+    curl, so every candidate fails instead of fitting a numerical artefact; IMEX does not."""
+    x = vector(ts.default_model().flexor_activation, ts.default_model().extensor_activation)
+    bad = FitProblem(min_jerk_curl(), method="monolithic", step=5e-3)
+    scores, failed = bad.evaluate(x)
+    assert failed[0] and scores[0] == FAILED_SCORE
+    good = FitProblem(min_jerk_curl(), method="imex", step=5e-3)
+    assert not good.evaluate(x)[1][0]
+
+
+def test_step_is_shrunk_to_divide_the_target_span(synthetic_target):
+    problem = FitProblem(synthetic_target, step=4e-3)
+    assert problem.step <= 4e-3 and problem.n_steps * problem.step == pytest.approx(1.5)
+
+
+# ---------------------------------------------------------------- the fit
+
+def test_fit_recovers_a_known_motion(synthetic_target):
+    problem = FitProblem(synthetic_target)
+    outcome = run_fit(problem, QUICK)
+    rms, _ = problem.reference_errors_deg(outcome.x)
+    assert rms <= 0.5
+    assert outcome.score < outcome.initial_score
+    assert outcome.simulations == problem.simulations > 1000
+
+
+def test_fit_is_reproducible_with_the_same_seed(synthetic_target):
+    small = SearchSettings(generations=5, population_per_parameter=4, polish_simulations=50)
+    a = run_fit(FitProblem(synthetic_target), small)
+    b = run_fit(FitProblem(synthetic_target), small)
+    assert np.array_equal(a.x, b.x) and a.score == b.score
+
+
+def test_frozen_parameters_stay_frozen(synthetic_target):
+    frozen = {"extensor.ramp1.level": 0.15, "flexor.ramp2.duration": 0.4}
+    space = ParameterSpace(frozen=frozen)
+    outcome = run_fit(FitProblem(synthetic_target, space),
+                      SearchSettings(generations=8, population_per_parameter=4,
+                                     polish_simulations=200))
+    for name, value in frozen.items():
+        assert outcome.x[PARAMETER_NAMES.index(name)] == value
+    assert np.all(outcome.x >= space.lower) and np.all(outcome.x <= space.upper)
+
+
+def test_resume_after_interruption_is_at_least_as_good(synthetic_target, tmp_path):
+    checkpoint = tmp_path / "ck.npz"
+    calls = []
+
+    def stop_after_five():
+        calls.append(1)
+        return len(calls) >= 5
+
+    problem = FitProblem(synthetic_target)
+    first = run_fit(problem, QUICK, checkpoint=checkpoint, should_stop=stop_after_five)
+    assert first.interrupted and first.generations_done == 5
+    state = load_checkpoint(checkpoint, FitProblem(synthetic_target))
+    assert float(state["best_score"]) == first.score
+    resumed = run_fit(FitProblem(synthetic_target), QUICK, checkpoint=checkpoint, resume=state)
+    assert not resumed.interrupted and resumed.generations_done == QUICK.generations
+    assert resumed.score <= first.score
+    assert resumed.simulations > first.simulations
+
+
+def test_checkpoint_of_another_fit_is_refused(synthetic_target, tmp_path):
+    checkpoint = tmp_path / "ck.npz"
+    run_fit(FitProblem(synthetic_target), SearchSettings(generations=1, polish_simulations=0,
+                                                         population_per_parameter=2),
+            checkpoint=checkpoint)
+    with pytest.raises(ts.ModelError, match="another fit"):
+        load_checkpoint(checkpoint, FitProblem(synthetic_target, step=2e-3))
+
+
+@pytest.mark.parametrize("space_args, field", [
+    (dict(frozen={"flexor.ramp9.level": 0.1}), "freeze"),
+    (dict(frozen={"flexor.ramp1.level": 1.5}), "freeze.flexor.ramp1.level"),
+    (dict(extensor_rest=-0.1), "extensor_rest"),
+])
+def test_bad_parameter_space(space_args, field):
+    with pytest.raises(ts.ModelError) as info:
+        ParameterSpace(**space_args)
+    assert info.value.field == field
+
+
+def test_bad_bounds_name_the_parameter():
+    with pytest.raises(ts.ModelError, match="lower 0.5 > upper 0.2") as info:
+        ParameterSpace().with_bounds("flexor.ramp1.delay", 0.5, 0.2)
+    assert info.value.field == "bounds.flexor.ramp1.delay"
+
+
+# ---------------------------------------------------------------- CLI
+
+def test_fit_cli_writes_loadable_outputs_and_resumes(tmp_path, capsys):
+    target = tmp_path / "target.csv"
+    t = np.arange(0, 1.0001, 0.01)
+    angle = 20 + 30 * (10 * t**3 - 15 * t**4 + 6 * t**5)
+    target.write_text("time,elbow\n" + "".join(f"{a},{b}\n" for a, b in zip(t, angle, strict=True)))
+    out = tmp_path / "fit"
+    args = ["fit", "--target", str(target), "--out", str(out), "--generations", "4",
+            "--population", "3", "--polish", "30", "--freeze", "extensor.ramp3.level=0.1",
+            "--bound", "flexor.ramp1.delay=0,0.3"]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert "reference     RMS" in printed and "simulations" in printed
+    summary = json.loads((out / "fit_summary.json").read_text())
+    assert summary["parameters"]["extensor.ramp3.level"] == 0.1
+    assert 0 <= summary["parameters"]["flexor.ramp1.delay"] <= 0.3
+    assert summary["simulations"] > 0 and summary["reference_rms_error_deg"] < 20
+    fitted = ts.load_model(out / "fitted_model.toml")
+    assert fitted.duration == pytest.approx(1.0)
+    assert math.degrees(fitted.initial_angle) == pytest.approx(20.0)
+    table = ts.read_table(out / "fit_motion.csv")
+    assert list(table)[:4] == ["time", "target_deg", "fitted_deg", "reference_deg"]
+    assert (out / "fit.png").stat().st_size > 0
+    assert main(args[:-6] + ["--generations", "6", "--resume"]) == 2  # settings differ
+    assert "another fit" in capsys.readouterr().err
+    assert main([*args[:6], "6", *args[7:], "--resume"]) == 0
+    assert json.loads((out / "fit_summary.json").read_text())["generations"] == 6
+
+
+@pytest.mark.parametrize("extra, field", [
+    (["--bound", "flexor.ramp1.delay=0"], "--bound"),
+    (["--freeze", "nonsense=1"], "freeze"),
+    (["--step", "0"], "step"),
+    (["--resume"], "--resume"),
+    (["--target", "builtin:walk"], "target"),
+])
+def test_fit_cli_bad_input_is_one_line_exit_2(tmp_path, capsys, extra, field):
+    assert main(["fit", "--out", str(tmp_path / "o"), *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and field in err
