@@ -3,6 +3,7 @@
 import csv
 import math
 
+import numpy as np
 import pytest
 
 import torquesim as ts
@@ -65,6 +66,8 @@ def test_study_on_a_short_curl_measures_what_model_md_says(tmp_path):
     assert smooth["monolithic"] == pytest.approx(4.0, abs=0.5)
     assert smooth["partitioned"] == pytest.approx(1.0, abs=0.2)
     assert smooth["partitioned[linear]"] == pytest.approx(2.0, abs=0.2)
+    assert smooth["imex"] == pytest.approx(2.0, abs=0.2)
+    assert by[("imex", 1e-3)]["stable"] and by[("imex", 1e-3)]["max_error_rad"] < 1e-4
     # the report and the table agree
     with open(tmp_path / "results.csv") as fh:
         table = list(csv.DictReader(fh))
@@ -99,3 +102,47 @@ def test_compare_cli_rejects_bad_steps(capsys):
 
     assert main(["compare", "--steps", "1,abc"]) == 2
     assert "--steps" in capsys.readouterr().err
+
+
+def test_sensitivity_to_se_stiffness_moves_tau_and_the_rk4_limit(tmp_path):
+    """τ = a·T_θ·|h'|/k: a stiffer SE shortens every time constant, so explicit RK4's
+    stability limit falls, while IMEX (implicit muscles) stays stable at the largest step."""
+    from torquesim.study.sensitivity import write_sensitivity
+
+    model = ts.default_model().replace(duration=0.6)
+    summary = write_sensitivity(tmp_path, model, "se_stiffness", (150.0, 3000.0),
+                                steps=(2e-3, 5e-4, 2e-4, 1e-4), repeats=1)
+    by = {(r["value"], r["technique"]): r for r in summary}
+    soft, stiff = by[(150.0, "monolithic")], by[(3000.0, "monolithic")]
+    assert 5 < soft["min_tau_extensor_s"] / stiff["min_tau_extensor_s"] < 40
+    assert (stiff["stability_limit_s"] or 0.0) < soft["stability_limit_s"]
+    assert by[(3000.0, "imex")]["stability_limit_s"] == 2e-3
+    with open(tmp_path / "sensitivity.csv") as fh:
+        assert len(list(csv.DictReader(fh))) == len(summary)
+    html_text = (tmp_path / "sensitivity.html").read_text()
+    assert html_text.count("data:image/png;base64,") == 3
+    assert (tmp_path / "se_stiffness=3000" / "report.html").is_file()
+
+
+@pytest.mark.parametrize("text", ["ce_damping=0,1", "se_stiffness=", "dumbbell_mass=-1",
+                                  "extensor_level=0.1,2", "se_stiffness=a,b"])
+def test_vary_rejects_bad_specs(text):
+    from torquesim.study.sensitivity import parse_vary
+
+    with pytest.raises(ts.ModelError) as info:
+        parse_vary(text)
+    assert info.value.field == "--vary"
+
+
+def test_vary_model_changes_only_the_named_parameter():
+    from torquesim.study.sensitivity import vary_model
+
+    base = ts.default_model()
+    m = vary_model(base, "extensor_level", 0.3)
+    assert m.extensor_activation(np.array([0.0, 1.0, 2.9])) == pytest.approx([0.3] * 3)
+    assert m.flexor_activation == base.flexor_activation
+    assert vary_model(base, "dumbbell_mass", 2.0).body.dumbbell_mass == 2.0
+    stiff = vary_model(base, "se_stiffness", 900.0)
+    assert stiff.flexor.se_stiffness == stiff.extensor.se_stiffness == 900.0
+    with pytest.raises(ts.ModelError, match="extensor_level=1"):
+        vary_model(base, "extensor_level", 1.0)  # the flexor cannot hold the start

@@ -152,7 +152,11 @@ def _parse_steps(text: str) -> tuple[float, ...]:
               help="Runs per setting; the median wall time is reported.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="compare-out",
               show_default=True, help="Directory for results.csv, figures, report.html.")
-def compare(model_path, steps, repeats, out_dir):
+@click.option("--vary", metavar="NAME=V1,V2,...",
+              help="Repeat the study per value of one parameter: se_stiffness (N·m/rad), "
+                   "extensor_level (constant co-activation), dumbbell_mass (kg); writes "
+                   "sensitivity.csv/.png/.html and one study folder per value.")
+def compare(model_path, steps, repeats, out_dir, vary):
     """Every technique over a range of steps against the reference: accuracy, order,
     stability and cost, and the verdict."""
     from .io.model_file import load_model
@@ -168,6 +172,27 @@ def compare(model_path, steps, repeats, out_dir):
 
     def progress(message):
         click.echo(message, err=True)
+
+    if vary:
+        from .study.sensitivity import parse_vary, write_sensitivity
+
+        name, vary_values = parse_vary(vary)
+        summary = write_sensitivity(out_dir, model, name, vary_values, steps=values,
+                                    repeats=repeats, progress=progress,
+                                    model_source=model_path or "builtin")
+        for value in vary_values:
+            picks = [r for r in summary if r["value"] == value]
+            smallest = min(values) * 1e3
+            limits = ", ".join(f"{r['technique']} " + (
+                f"{r['stability_limit_s'] * 1e3:g} ms" if r["stability_limit_s"]
+                else f"< {smallest:g} ms") for r in picks if r["technique"] in
+                {"monolithic", "partitioned", "partitioned[linear]", "imex"})
+            winners = ", ".join(f"{t:g}°: {picks[0][f'cheapest_{t:g}deg'] or 'none'}"
+                                for t in (1.0, 0.1, 0.01, 0.001))
+            click.echo(f"{name} = {value:g}: stability limits {limits}; cheapest {winners}")
+        click.echo(f"wrote {out_dir}/sensitivity.csv, sensitivity.png, sensitivity.html and "
+                   f"one study folder per value")
+        return
 
     rows, _, smooth = write_study(out_dir, model, steps=values, repeats=repeats,
                                   progress=progress, model_source=model_path or "builtin")

@@ -1,0 +1,191 @@
+"""Sensitivity of the study to one model parameter (``torquesim compare --vary NAME=v1,v2``).
+
+The whole study is repeated per value; the summary shows how each technique's stability
+limit, the units' smallest CE time constants and the verdict move. The stiff regime (low
+activation, fast lengthening, stiff SE) is where explicit schemes suffer.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import html
+import io
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelError
+from ..io.atomic import write_atomic, write_text_atomic
+from ..model.activation import ActivationProfile
+from ..model.elbow import ElbowModel
+from ..model.torque_generator import RK4_STABILITY_LIMIT
+from .compare import ACCURACY_TARGETS_DEG, stability_limit, verdict
+from .outputs import smooth_case_orders, write_study
+from .report import figure_png
+
+#: Parameter name → (what it changes, allowed range).
+VARIABLES = {
+    "se_stiffness": ("SE stiffness k of both units, N·m/rad", (1.0, 1e5)),
+    "extensor_level": ("constant extensor (co-)activation, initial level and every ramp",
+                       (0.0, 1.0)),
+    "dumbbell_mass": ("dumbbell mass, kg", (0.0, 100.0)),
+}
+SUMMARY_COLUMNS = ("variable", "value", "technique", "stability_limit_s", "min_tau_flexor_s",
+                   "min_tau_extensor_s", *(f"cheapest_{t:g}deg" for t in ACCURACY_TARGETS_DEG),
+                   *(f"wall_time_{t:g}deg_s" for t in ACCURACY_TARGETS_DEG))
+
+
+def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
+    """``NAME=v1,v2,...`` → (name, values), checked against :data:`VARIABLES`."""
+    name, _, rest = text.partition("=")
+    name = name.strip()
+    if name not in VARIABLES:
+        raise ModelError("--vary", f"{name!r} cannot be varied; allowed: "
+                         f"{', '.join(VARIABLES)} (e.g. se_stiffness=200,600,3000)")
+    try:
+        values = tuple(float(v) for v in rest.split(",") if v.strip())
+    except ValueError:
+        values = ()
+    low, high = VARIABLES[name][1]
+    if not values or not all(math.isfinite(v) and low <= v <= high for v in values):
+        raise ModelError("--vary", f"{text!r}: allowed {name}=v1,v2,... with every value in "
+                         f"[{low:g}, {high:g}]")
+    return name, values
+
+
+def vary_model(model: ElbowModel, name: str, value: float) -> ElbowModel:
+    """``model`` with parameter ``name`` set to ``value`` (see :data:`VARIABLES`)."""
+    try:
+        if name == "se_stiffness":
+            return model.replace(flexor=replace(model.flexor, se_stiffness=value),
+                                 extensor=replace(model.extensor, se_stiffness=value))
+        if name == "extensor_level":
+            ramps = tuple(replace(r, level=value) for r in model.extensor_activation.ramps)
+            return model.replace(extensor_activation=ActivationProfile(value, ramps))
+        if name == "dumbbell_mass":
+            return model.replace(body=replace(model.body, dumbbell_mass=value))
+    except ModelError as exc:
+        raise ModelError("--vary", f"{name}={value:g} gives an invalid model: {exc}") from None
+    raise ModelError("--vary", f"{name!r}; allowed: {', '.join(VARIABLES)}")
+
+
+def summary_rows(name: str, value: float, rows: list[dict], reference) -> list[dict]:
+    """One row per technique: its stability limit, the smallest τ of each unit over the
+    reference motion, and the verdict's winner per accuracy target."""
+    tau_f, tau_e = reference.time_constants()
+    verdicts = verdict(rows)
+    out = []
+    for tech in dict.fromkeys(r["technique"] for r in rows):
+        row = {"variable": name, "value": value, "technique": tech,
+               "stability_limit_s": stability_limit(rows, tech),
+               "min_tau_flexor_s": float(np.min(tau_f)), "min_tau_extensor_s": float(np.min(tau_e))}
+        for v in verdicts:
+            winner = v["winner"]
+            row[f"cheapest_{v['target_deg']:g}deg"] = winner["technique"] if winner else ""
+            mine = next((r for r in v["ranking"] if r["technique"] == tech), None)
+            row[f"wall_time_{v['target_deg']:g}deg_s"] = mine["wall_time_s"] if mine else None
+        out.append(row)
+    return out
+
+
+def plot_sensitivity(summary: list[dict], name: str):
+    """Smallest τ per unit and each fixed-step technique's stability limit against the value."""
+    import matplotlib.pyplot as plt
+
+    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    values = sorted({r["value"] for r in summary})
+    first = {v: next(r for r in summary if r["value"] == v) for v in values}
+    for key, label in (("min_tau_flexor_s", "flexor"), ("min_tau_extensor_s", "extensor")):
+        ax0.loglog(values, [first[v][key] * 1e3 for v in values], "o-", label=f"min τ {label}")
+    ax0.loglog(values, [RK4_STABILITY_LIMIT * min(first[v]["min_tau_flexor_s"],
+                                                  first[v]["min_tau_extensor_s"]) * 1e3
+                        for v in values], "k:", label="RK4 limit 2.785·min τ")
+    ax0.set_xlabel(name)
+    ax0.set_ylabel("ms")
+    ax0.legend(fontsize="small")
+    for tech in dict.fromkeys(r["technique"] for r in summary):
+        limits = [next((r["stability_limit_s"] for r in summary
+                        if r["value"] == v and r["technique"] == tech), None) for v in values]
+        if any(lim is not None for lim in limits):
+            ax1.semilogy(values, [np.nan if lim is None else lim * 1e3 for lim in limits], "o-",
+                         label=tech)
+    ax1.set_xscale("log")
+    ax1.set_xlabel(name)
+    ax1.set_ylabel("largest step tried within 1° (ms)")
+    ax1.legend(fontsize="x-small")
+    from matplotlib.ticker import NullFormatter
+
+    for ax in (ax0, ax1):
+        ax.grid(alpha=0.3, which="both")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.yaxis.set_minor_formatter(NullFormatter())
+    return fig
+
+
+def _cell(value) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return html.escape(str(value))
+
+
+def render_sensitivity(summary, name, figures: dict[float, bytes], overview: bytes) -> str:
+    """A self-contained HTML page of the sensitivity study."""
+    b64 = base64.b64encode
+    out = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>torquesim sensitivity"
+           "</title><style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
+           "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;"
+           "padding:2px 6px}</style></head><body>",
+           f"<h1>Sensitivity to {html.escape(name)}</h1>",
+           f"<p>{html.escape(VARIABLES[name][0])}. The full study was repeated per value "
+           "(each in its own folder, with its report). Stability limit: the largest step whose "
+           "run, and every smaller one, stays within 1° of the reference.</p>",
+           f"<img src='data:image/png;base64,{b64(overview).decode()}'>",
+           "<h2>How the limits and the verdict move</h2><table><tr>"
+           + "".join(f"<th>{c}</th>" for c in SUMMARY_COLUMNS) + "</tr>"]
+    for r in summary:
+        out.append("<tr>" + "".join(f"<td>{_cell(r[c])}</td>" for c in SUMMARY_COLUMNS)
+                   + "</tr>")
+    out.append("</table><h2>Each unit's time constant over the motion</h2>")
+    for value, png in figures.items():
+        out.append(f"<h3>{html.escape(name)} = {value:g}</h3>"
+                   f"<img src='data:image/png;base64,{b64(png).decode()}'>")
+    out.append("</body></html>")
+    return "\n".join(out)
+
+
+def write_sensitivity(directory, model: ElbowModel, name: str, values, *, steps, repeats=3,
+                      progress=None, model_source="builtin") -> list[dict]:
+    """Run the study per value into ``directory/NAME=VALUE/`` and write
+    ``sensitivity.csv``, ``sensitivity.png`` and ``sensitivity.html`` into ``directory``."""
+    from .report import plot_time_constants
+
+    directory = Path(directory)
+    models = [(v, vary_model(model, name, v)) for v in values]  # all checked before any run
+    directory.mkdir(parents=True, exist_ok=True)
+    if progress:
+        progress("smooth case orders")
+    smooth = smooth_case_orders()
+    summary, figures = [], {}
+    for value, varied in models:
+        if progress:
+            progress(f"== {name} = {value:g}")
+        rows, reference, _ = write_study(directory / f"{name}={value:g}", varied, steps=steps,
+                                         repeats=repeats, progress=progress, smooth=smooth,
+                                         model_source=f"{model_source}, {name}={value:g}")
+        summary += summary_rows(name, value, rows, reference)
+        figures[value] = figure_png(plot_time_constants(reference))
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=SUMMARY_COLUMNS)
+    writer.writeheader()
+    writer.writerows({k: ("" if v is None else v) for k, v in r.items()} for r in summary)
+    write_text_atomic(directory / "sensitivity.csv", buf.getvalue())
+    overview = figure_png(plot_sensitivity(summary, name))
+    write_atomic(directory / "sensitivity.png", lambda p: p.write_bytes(overview))
+    write_text_atomic(directory / "sensitivity.html",
+                      render_sensitivity(summary, name, figures, overview))
+    return summary
