@@ -14,7 +14,9 @@ def test_toml_round_trip_is_exact(tmp_path):
     model = ts.default_model().replace(
         initial_angle=math.radians(23.4), duration=2.5,
         extensor_activation=ts.ActivationProfile(0.15, (ts.Ramp(0.1, 0.2, 0.3),)),
-        body=ts.BodyParameters(dumbbell_mass=7.25, endstop_torque=0.0))
+        body=ts.BodyParameters(dumbbell_mass=7.25, endstop_torque=0.0),
+        extensor=ts.TorqueGeneratorUnit(**{**ts.TorqueGeneratorUnit.extensor_default().as_dict(),
+                                           "ce_damping": 0.25}))
     path = ts.save_model(model, tmp_path / "m.toml")
     assert ts.load_model(path) == model
     assert ts.load_model(ts.save_model(ts.default_model(), tmp_path / "d.toml")) == \

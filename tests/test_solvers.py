@@ -206,3 +206,19 @@ def test_imex_orders_on_smooth_case(coupling, low, high):
     """IMEX is second order (SDIRK2 muscles, linear torque predictor); with a zero-order hold
     the exchange caps it at first order, as for explicit partitioned."""
     assert low < _order("partitioned", coupling, [2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4]) < high
+
+
+def test_ce_damping_bounds_the_stiffness_so_rk4_is_stable_at_1ms():
+    """Millard et al. (2013) remedy: with β = 0.3 N·m·s/rad (τ ≥ β/k) monolithic RK4 at 1 ms
+    stays within the guard and agrees with the reference; without it, it is wrong by ~1 rad."""
+    from dataclasses import replace
+
+    m = ts.default_model()
+    damped = m.replace(flexor=replace(m.flexor, ce_damping=0.3),
+                       extensor=replace(m.extensor, ce_damping=0.3))
+    ref = ts.simulate(damped, "reference", rtol=1e-11, atol=1e-13)
+    run = ts.simulate(damped, "monolithic", 1e-3)
+    assert not run.stability.exceeded
+    assert max_angle_error(run, ref) < 1e-6
+    tau_f, tau_e = ref.time_constants()
+    assert min(tau_f.min(), tau_e.min()) >= 0.3 / m.flexor.se_stiffness

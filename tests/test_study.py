@@ -124,7 +124,7 @@ def test_sensitivity_to_se_stiffness_moves_tau_and_the_rk4_limit(tmp_path):
     assert (tmp_path / "se_stiffness=3000" / "report.html").is_file()
 
 
-@pytest.mark.parametrize("text", ["ce_damping=0,1", "se_stiffness=", "dumbbell_mass=-1",
+@pytest.mark.parametrize("text", ["tendon_slack=0,1", "se_stiffness=", "dumbbell_mass=-1",
                                   "extensor_level=0.1,2", "se_stiffness=a,b"])
 def test_vary_rejects_bad_specs(text):
     from torquesim.study.sensitivity import parse_vary

@@ -98,18 +98,32 @@ def test_unit_torque_cannot_push():
     assert tg.unit_ce_velocity(-0.01, 1.0, 0.5, PF) == PF[tg.OMEGA_MAX]
 
 
+PF_DAMPED = FLEXOR.__class__(**{**FLEXOR.as_dict(), "ce_damping": 0.4}).to_array()
+
+
+@pytest.mark.parametrize("p", [PF, PF_DAMPED], ids=["abstract", "damped"])
 @pytest.mark.parametrize("omega", [-3.0, -0.1, 0.5, 6.0])
-def test_time_constant_is_the_linearised_rate(omega):
-    """τ = a·T_θ·|h'|/k equals −1/(∂ω_cc/∂θ_cc) at θ_cc = θ_opt (where T_θ' = 0)."""
-    a, theta_cc = 0.3, PF[tg.THETA_OPT]
-    stretch = a * tg.ce_torque_velocity(omega, PF) / PF[tg.K_SE]
+def test_time_constant_is_the_linearised_rate(omega, p):
+    """τ = (a·T_θ·|h'| + β)/k equals −1/(∂ω_cc/∂θ_cc) at θ_cc = θ_opt (where T_θ' = 0)."""
+    a, theta_cc = 0.3, p[tg.THETA_OPT]
+    stretch = (a * tg.ce_torque_velocity(omega, p) - p[tg.CE_DAMPING] * omega) / p[tg.K_SE]
     theta = theta_cc - stretch
+    assert tg.unit_ce_velocity(stretch, theta_cc, a, p) == pytest.approx(omega, abs=1e-9)
     eps = 1e-8
-    d = (tg.unit_ce_velocity(theta_cc + eps - theta, theta_cc + eps, a, PF)
-         - tg.unit_ce_velocity(theta_cc - eps - theta, theta_cc - eps, a, PF)) / (2 * eps)
-    tau = tg.unit_time_constant(omega, theta_cc, a, PF)
+    d = (tg.unit_ce_velocity(theta_cc + eps - theta, theta_cc + eps, a, p)
+         - tg.unit_ce_velocity(theta_cc - eps - theta, theta_cc - eps, a, p)) / (2 * eps)
+    tau = tg.unit_time_constant(omega, theta_cc, a, p)
     assert -1.0 / d == pytest.approx(tau, rel=1e-5)
-    assert math.isinf(tg.unit_time_constant(PF[tg.OMEGA_MAX], theta_cc, a, PF))
+    assert tau >= p[tg.CE_DAMPING] / p[tg.K_SE]
+    assert math.isinf(tg.unit_time_constant(p[tg.OMEGA_MAX], theta_cc, a, p))
+
+
+def test_ce_damping_makes_a_slack_unit_shorten_at_a_finite_speed():
+    """With β > 0 a slack SE no longer sends the CE to ω_max: a·T_θ·h(ω) = β·ω instead."""
+    w = tg.unit_ce_velocity(-0.01, 1.0, 0.5, PF_DAMPED)
+    assert 0.0 < w < PF_DAMPED[tg.OMEGA_MAX]
+    cap = 0.5 * tg.torque_angle(1.0, PF_DAMPED)
+    assert cap * tg.ce_torque_velocity(w, PF_DAMPED) == pytest.approx(0.4 * w, rel=1e-9)
 
 
 def test_non_monotone_h_is_rejected():

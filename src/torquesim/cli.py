@@ -154,7 +154,8 @@ def _parse_steps(text: str) -> tuple[float, ...]:
               show_default=True, help="Directory for results.csv, figures, report.html.")
 @click.option("--vary", metavar="NAME=V1,V2,...",
               help="Repeat the study per value of one parameter: se_stiffness (N·m/rad), "
-                   "extensor_level (constant co-activation), dumbbell_mass (kg); writes "
+                   "extensor_level (constant co-activation), dumbbell_mass (kg), ce_damping "
+                   "(N·m·s/rad); writes "
                    "sensitivity.csv/.png/.html and one study folder per value.")
 def compare(model_path, steps, repeats, out_dir, vary):
     """Every technique over a range of steps against the reference: accuracy, order,

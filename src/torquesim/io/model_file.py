@@ -54,6 +54,7 @@ FIELD_DOCS = {
     "angle_curvature": "rad^-2, k2 of the torque/angle curve. [0, inf)",
     "se_stiffness": "N m/rad, series elastic element. (0, inf)",
     "eccentric_slope_ratio": "eccentric/concentric slope of T_omega at 0 (Yeadon 2006: 4.3)",
+    "ce_damping": "N m s/rad, CE parallel damping beta (Millard 2013; 0 = abstract). [0, 1e4]",
 }
 
 

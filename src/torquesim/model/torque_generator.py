@@ -28,7 +28,8 @@ T0, T_MAX, OMEGA_MAX, OMEGA_C, SLOPE_RATIO, A_MIN, OMEGA_R, OMEGA_1 = range(8)
 THETA_OPT, K2, K_SE = 8, 9, 10
 # Derived constants (Yeadon et al. 2006), filled by to_array.
 T_C, C_CONC, OMEGA_E, E_ECC, H_ISOMETRIC, H_ECC_LIMIT = 11, 12, 13, 14, 15, 16
-UNIT_ARRAY_SIZE = 17
+CE_DAMPING = 17
+UNIT_ARRAY_SIZE = 18
 
 #: The torque/angle curve never falls below this fraction of its peak (MODEL.md §2.3).
 TORQUE_ANGLE_FLOOR = 0.01
@@ -66,6 +67,11 @@ class TorqueGeneratorUnit:
         k2, curvature of the quadratic torque/angle curve. rad⁻². Bounds [0, inf).
     se_stiffness : float
         k, torsional stiffness of the series elastic element. N·m/rad. Bounds (0, inf).
+    ce_damping : float
+        β, a damper in parallel with the CE (the remedy of Millard et al. 2013, rotational
+        form): the CE torque becomes a·T_θ·h(ω_cc) − β·ω_cc, which makes the CE equation
+        solvable for any state and bounds the time constant below by β/k. N·m·s/rad.
+        Default 0 = the abstract's model. Bounds [0, 1e4].
     """
 
     isometric_torque: float
@@ -79,6 +85,7 @@ class TorqueGeneratorUnit:
     angle_curvature: float
     se_stiffness: float
     eccentric_slope_ratio: float = 4.3
+    ce_damping: float = 0.0
 
     def __post_init__(self) -> None:
         pos = dict(low=0.0, low_open=True)
@@ -96,6 +103,7 @@ class TorqueGeneratorUnit:
         check_range("optimal_angle", self.optimal_angle, -math.pi, 2 * math.pi, unit="rad")
         check_range("angle_curvature", self.angle_curvature, 0.0, unit="rad^-2")
         check_range("se_stiffness", self.se_stiffness, **pos, unit="N·m/rad")
+        check_range("ce_damping", self.ce_damping, 0.0, 1e4, unit="N·m·s/rad")
         _check_monotone(self.to_array())
 
     @classmethod
@@ -136,6 +144,7 @@ class TorqueGeneratorUnit:
         p[THETA_OPT] = self.optimal_angle
         p[K2] = self.angle_curvature
         p[K_SE] = self.se_stiffness
+        p[CE_DAMPING] = self.ce_damping
         t0, tmax, wmax, wc, k = p[T0], p[T_MAX], p[OMEGA_MAX], p[OMEGA_C], p[SLOPE_RATIO]
         p[T_C] = t0 * wc / wmax
         p[C_CONC] = p[T_C] * (wmax + wc)
@@ -298,7 +307,12 @@ def unit_torque(stretch, p):
 
 @njit(cache=True, error_model="numpy")
 def unit_ce_velocity(stretch, theta_cc, activation, p):
-    """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``."""
+    """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``.
+
+    With ``ce_damping`` β > 0 it solves a·T_θ·h(ω) − β·ω = k·max(s, 0) (the implicit stage
+    equation with a zero step)."""
+    if p[CE_DAMPING] > 0.0:
+        return unit_implicit_ce_velocity(stretch, theta_cc, 1.0, 0.0, activation, p, 0.0)[0]
     capacity = max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
     target = unit_torque(stretch, p) / capacity
     return ce_velocity(target, p)
@@ -306,7 +320,8 @@ def unit_ce_velocity(stretch, theta_cc, activation, p):
 
 @njit(cache=True, error_model="numpy")
 def unit_time_constant(omega_cc, theta_cc, activation, p):
-    """Time constant τ = a·T_θ·|h'(ω_cc)|/k of the unit's CE equation, s (MODEL.md §5).
+    """Time constant τ = (a·T_θ·|h'(ω_cc)| + β)/k of the unit's CE equation, s (MODEL.md §5;
+    β = ``ce_damping``, 0 by default).
 
     Returns +inf where the CE velocity is clamped (slack SE or ±ω_max), where it does not
     respond to the state. Explicit RK4 is stable for step/τ ≤ 2.785.
@@ -315,7 +330,8 @@ def unit_time_constant(omega_cc, theta_cc, activation, p):
     if omega_cc >= wmax or omega_cc <= -wmax:
         return np.inf
     slope = abs(ce_torque_velocity_slope(omega_cc, p))
-    return max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p) * slope / p[K_SE]
+    return (max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p) * slope
+            + p[CE_DAMPING]) / p[K_SE]
 
 
 @njit(cache=True, error_model="numpy")
@@ -330,9 +346,9 @@ def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity
         t_theta, t_theta_slope = TORQUE_ANGLE_FLOOR, 0.0
     stretch = stretch_known + gamma_h * w
     h_value = ce_torque_velocity(w, p)
-    g = capacity_activation * t_theta * h_value
+    g = capacity_activation * t_theta * h_value - p[CE_DAMPING] * w
     slope = capacity_activation * (t_theta_slope * h_value
-                                   + t_theta * ce_torque_velocity_slope(w, p))
+                                   + t_theta * ce_torque_velocity_slope(w, p)) - p[CE_DAMPING]
     if stretch > 0.0:
         g -= p[K_SE] * stretch
         slope -= p[K_SE] * gamma_h
@@ -348,7 +364,9 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
     angle moves against its shortening velocity) and its SE stretch s = s_known + γh·w; w must
     satisfy the CE equation of MODEL.md §2.5 at that state:
 
-        G(w) = max(a, 0.01)·T_θ(θ_cc)·h(w) − k·max(s, 0) = 0,    w ∈ [−ω_max, ω_max].
+        G(w) = max(a, 0.01)·T_θ(θ_cc)·h(w) − β·w − k·max(s, 0) = 0,    w ∈ [−ω_max, ω_max]
+
+    (β = ``ce_damping``, 0 in the abstract's model).
 
     G(ω_max) ≤ 0 always; if G(−ω_max) ≤ 0 the eccentric clamp holds and w = −ω_max, as in the
     explicit equation. Otherwise G has one root (h decreasing, the SE term non-increasing),

@@ -32,6 +32,8 @@ VARIABLES = {
     "extensor_level": ("constant extensor (co-)activation, initial level and every ramp",
                        (0.0, 1.0)),
     "dumbbell_mass": ("dumbbell mass, kg", (0.0, 100.0)),
+    "ce_damping": ("CE parallel damping β of both units (Millard et al. 2013), N·m·s/rad",
+                   (0.0, 1e4)),
 }
 SUMMARY_COLUMNS = ("variable", "value", "technique", "stability_limit_s", "min_tau_flexor_s",
                    "min_tau_extensor_s", *(f"cheapest_{t:g}deg" for t in ACCURACY_TARGETS_DEG),
@@ -65,6 +67,9 @@ def vary_model(model: ElbowModel, name: str, value: float) -> ElbowModel:
         if name == "extensor_level":
             ramps = tuple(replace(r, level=value) for r in model.extensor_activation.ramps)
             return model.replace(extensor_activation=ActivationProfile(value, ramps))
+        if name == "ce_damping":
+            return model.replace(flexor=replace(model.flexor, ce_damping=value),
+                                 extensor=replace(model.extensor, ce_damping=value))
         if name == "dumbbell_mass":
             return model.replace(body=replace(model.body, dumbbell_mass=value))
     except ModelError as exc:
