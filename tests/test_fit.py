@@ -142,6 +142,14 @@ def test_explicit_rk4_past_its_limit_scores_as_failed():
     assert not good.evaluate(x)[1][0]
 
 
+def test_fit_with_explicit_rk4_past_its_limit_stops_with_advice(capsys, tmp_path):
+    args = ["fit", "--method", "monolithic", "--step", "5ms", "--out", str(tmp_path / "o")]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "step" in err and "stability limit" in err and "--method imex" in err
+    assert not (tmp_path / "o").exists()
+
+
 def test_step_is_shrunk_to_divide_the_target_span(synthetic_target):
     problem = FitProblem(synthetic_target, step=4e-3)
     assert problem.step <= 4e-3 and problem.n_steps * problem.step == pytest.approx(1.5)

@@ -302,6 +302,7 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
             raise ModelError("--resume", f"no checkpoint {str(checkpoint)!r}; allowed: the "
                              "--out directory of an earlier fit")
         state = load_checkpoint(checkpoint, problem)
+    created = not out.exists()
     out.mkdir(exist_ok=True)
     stop = []
 
@@ -316,6 +317,10 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
         outcome = run_fit(problem, settings, checkpoint=checkpoint, resume=state,
                           progress=lambda msg: click.echo(msg, err=True),
                           should_stop=lambda: bool(stop))
+    except ModelError:
+        if created and not any(out.iterdir()):
+            out.rmdir()
+        raise
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

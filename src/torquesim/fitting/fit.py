@@ -136,6 +136,21 @@ def _initial_population(problem, guess, size, rng) -> np.ndarray:
     return pop
 
 
+def _explain_failed_start(problem: FitProblem, x) -> None:
+    """The start cannot be simulated with the fit's explicit technique: say why and stop
+    (a fit whose every run breaks the RK4 stability limit would fit numerical artefacts)."""
+    from ..solvers.simulate import simulate
+
+    run = simulate(problem.model_for(x), problem.method, problem.step,
+                   coupling=problem.coupling, check=False)
+    if run.stability is not None and run.stability.exceeded:
+        raise ModelError("step", f"{problem.step * 1e3:.4g} ms is beyond explicit RK4's "
+                         f"stability limit on this motion (step/τ = "
+                         f"{run.stability.max_step_ratio:.3g} > 2.785 in the "
+                         f"{run.stability.unit}); allowed: --step ≤ "
+                         f"{run.stability.largest_safe_step * 1e3:.3g} ms, or --method imex")
+
+
 def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
             checkpoint: str | Path | None = None, resume: dict | None = None,
             progress: Callable[[str], None] | None = None,
@@ -154,7 +169,10 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
     prior_wall = 0.0
     if resume is None:
         guess = initial_guess(problem.model, problem.target, space)
-        guess_score = float(problem.evaluate(guess)[0][0])
+        scores, failed = problem.evaluate(guess)
+        guess_score = float(scores[0])
+        if failed[0] and problem.explicit_muscles:
+            _explain_failed_start(problem, guess)
         say(f"initial guess (inverse dynamics): {guess_score:.3f} deg RMS")
         state = {"version": CHECKPOINT_VERSION, "fingerprint": fingerprint(problem),
                  "stage": "search", "generations_done": 0, "polish_done": 0,
