@@ -62,6 +62,13 @@ def test_csv_target_in_degrees_and_radians(tmp_path):
     assert math.degrees(deg.angle[2]) == pytest.approx(12.0)
 
 
+def test_csv_target_with_semicolons_and_comments(tmp_path):
+    rows = "\n".join(f"{0.01 * i};{10 + i}" for i in range(6))
+    path = _write(tmp_path / "t.csv", "# exported by a lab system\ntime;elbow\n" + rows + "\n")
+    target = load_target(path)
+    assert target.time.size == 6 and math.degrees(target.angle[-1]) == pytest.approx(15.0)
+
+
 @pytest.mark.parametrize("flag, scale", [("yes", 1.0), ("no", math.pi / 180)])
 def test_mot_target_honours_in_degrees(tmp_path, flag, scale):
     body = "\n".join(f"{0.01 * i}\t{(30 + i) * scale}\t0.0" for i in range(6))

@@ -274,6 +274,8 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
     """
     import signal
 
+    import numpy as np
+
     from .fitting import FitProblem, ParameterSpace, SearchSettings, load_target, run_fit
     from .fitting.fit import load_checkpoint
     from .fitting.outputs import CHECKPOINT_FILE, summarise, summary_lines, write_outputs
@@ -285,6 +287,10 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
     if not (out.parent if str(out.parent) else Path(".")).is_dir():
         raise ModelError("--out", f"directory {str(out.parent)!r} does not exist")
     target = load_target(target_spec, column, units)
+    if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt") and \
+            np.max(np.abs(np.degrees(target.angle))) <= math.pi:
+        click.echo("warning: every target angle is within ±3.2 degrees; if the file is in "
+                   "radians, pass --units rad", err=True)
     space = ParameterSpace(extensor_rest=extensor_rest)
     for name, (low, high) in _parse_assignments(bounds, "--bound", 2).items():
         space = space.with_bounds(name, low, high)

@@ -50,9 +50,10 @@ def read_angle_history(path, column: str | None = None,
                        units: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
     """Time (s) and elbow angle (rad) from a CSV or OpenSim ``.mot``/``.sto`` file.
 
-    CSV: a header row with ``time`` and the angle column (``column``; optional when the file
-    has one angle column, or exactly one whose name contains "elbow"); ``units`` is ``"deg"``
-    (default) or ``"rad"``. Storage files: header lines up to ``endheader``, then
+    CSV (comma, semicolon or tab separated; lines starting with ``#`` are comments): a header
+    row with ``time`` and the angle column (``column``; optional when the file has one angle
+    column, or exactly one whose name contains "elbow"); ``units`` is ``"deg"`` (default) or
+    ``"rad"``. Storage files: header lines up to ``endheader``, then
     tab/space-separated columns; ``inDegrees=yes|no`` in the header gives the units (an
     explicit ``units`` that contradicts it is an error; without the key ``units`` applies,
     default degrees). Time must increase strictly; every cell must be a finite number.
@@ -87,7 +88,13 @@ def read_angle_history(path, column: str | None = None,
             units = stated
         rows = [(i + 1, line.split()) for i, line in enumerate(lines) if i >= first]
     elif suffix in (".csv", ".txt"):
-        rows = [(i + 1, r) for i, r in enumerate(csv.reader(lines))]
+        try:
+            sample = [line for line in lines if not line.lstrip().startswith("#")][:20]
+            dialect = csv.Sniffer().sniff("\n".join(sample), delimiters=",;\t")
+        except csv.Error:
+            dialect = csv.excel
+        rows = [(i + 1, r) for i, r in enumerate(csv.reader(lines, dialect))
+                if not (r and r[0].lstrip().startswith("#"))]
     else:
         raise ModelError("target", f"{path.name}: unknown file type {suffix!r}; allowed: "
                          ".csv, .mot, .sto or builtin:curl")
