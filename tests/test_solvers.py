@@ -222,3 +222,10 @@ def test_ce_damping_bounds_the_stiffness_so_rk4_is_stable_at_1ms():
     assert max_angle_error(run, ref) < 1e-6
     tau_f, tau_e = ref.time_constants()
     assert min(tau_f.min(), tau_e.min()) >= 0.3 / m.flexor.se_stiffness
+
+
+def test_a_step_too_coarse_for_the_activation_ramps_is_reported(model):
+    """IMEX is stable at any step, but a 0.1 s step cannot follow 0.3 s ramps: say so."""
+    coarse = ts.simulate(model, "imex", 0.1)
+    assert "activation is not resolved" in coarse.message and "≤ 30 ms" in coarse.message
+    assert ts.simulate(model, "imex", 0.02).message == ""

@@ -84,8 +84,8 @@ def simulate(model_path, method, step, duration, out_path, plot_path):
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
     model = load_model(model_path) if model_path else default_model()
     result = run(model, method, step, duration=duration)
-    if result.stability is not None and result.stability.exceeded:
-        click.echo(f"warning: {result.stability.message()}", err=True)
+    if result.message:
+        click.echo(f"warning: {result.message}", err=True)
     if out_path:
         result.save(out_path)
     if plot_path:

@@ -141,6 +141,8 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
                    f"{stability.largest_safe_step * 1e3:.3g} ms) or method 'reference'")
     elif stability.exceeded:
         message = stability.message()
+    else:
+        message = _resolution_warning(model, step)
     # An implicit unit solve evaluates one unit: two of them count as one muscle evaluation.
     cost = RunCost(done, int(stats[fs.NFEV_BODY]),
                    int(stats[fs.NFEV_MUSCLE] + math.ceil(stats[fs.UNIT_SOLVES] / 2)), wall)
@@ -149,6 +151,22 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
         settings["coupling"] = coupling.__dict__.copy()
     return SimulationResult(model, packed, times, out[: done + 1], label, float(step), cost,
                             stability, status, message, settings)
+
+
+#: A fixed step longer than this fraction of the shortest activation ramp does not resolve the
+#: activation: the run is stable (IMEX) but inaccurate.
+RAMP_RESOLUTION = 0.1
+
+
+def _resolution_warning(model, step) -> str:
+    """A warning when the step is too coarse for the activation ramps, else ""."""
+    ramps = [r.duration for p in (model.flexor_activation, model.extensor_activation)
+             for r in p.ramps]
+    if not ramps or step <= RAMP_RESOLUTION * min(ramps):
+        return ""
+    return (f"step {step * 1e3:g} ms is longer than a tenth of the shortest activation ramp "
+            f"({min(ramps):.3g} s): the activation is not resolved and the motion is "
+            f"inaccurate; use a step ≤ {RAMP_RESOLUTION * min(ramps) * 1e3:.3g} ms")
 
 
 def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> SimulationResult:
