@@ -47,8 +47,8 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         warnings.append(f"the reference re-simulation is worse ({ref_rms:.3f} vs "
                         f"{rms:.3f} deg RMS): the fit leans on the integrator's error; use a "
                         "smaller --step or --method imex")
-    if fitted.stability is not None and fitted.stability.exceeded:
-        warnings.append(fitted.stability.message())
+    if fitted.message:  # stability limit broken, or activation ramps not resolved
+        warnings.append(fitted.message)
     return {
         "torquesim_version": __version__,
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
