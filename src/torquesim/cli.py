@@ -1,4 +1,4 @@
-"""Command-line interface: ``torquesim simulate``, ``torquesim model``."""
+"""Command-line interface: ``torquesim simulate``, ``model``, ``compare`` and ``fit``."""
 
 from __future__ import annotations
 

@@ -70,6 +70,8 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         "simulations_per_second": outcome.simulations / max(outcome.wall_time, 1e-9),
         "generations": outcome.generations_done, "polish_simulations": outcome.polish_done,
         "interrupted": outcome.interrupted,
+        "history": {"columns": ["simulations", "wall_time_s", "best_objective_deg"],
+                    "rows": outcome.history},
         "settings": settings.__dict__,
         "parameters": parameter_table(outcome.x),
         "initial_guess": parameter_table(outcome.initial_x),
