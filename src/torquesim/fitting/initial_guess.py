@@ -13,7 +13,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import make_smoothing_spline
 from scipy.optimize import least_squares
 
 from ..model.activation import activation
@@ -28,7 +27,7 @@ from .target import Target
 def required_torque(model: ElbowModel, target: Target, spacing: float = 0.005):
     """(t, θ, ω, T_net) on a regular grid (s from the target start): the net muscle torque,
     N·m, that makes the body follow the smoothed target."""
-    spline = make_smoothing_spline(target.elapsed, target.angle)
+    spline = target.smoothed()
     t = np.linspace(0.0, target.duration, int(round(target.duration / spacing)) + 1)
     theta, omega, alpha = spline(t), spline.derivative(1)(t), spline.derivative(2)(t)
     b = model.body.to_array()
@@ -90,10 +89,11 @@ def fit_ramps(t, level, initial_level: float, lower, upper) -> np.ndarray:
 
 
 def initial_guess(model: ElbowModel, target: Target, space: ParameterSpace) -> np.ndarray:
-    """An 18-vector from inverse dynamics (module docstring), inside the bounds."""
+    """An 18-vector from inverse dynamics (module docstring), inside the bounds. ``model``
+    is the fit's model, already starting at the target's first angle."""
     t, theta, omega, torque = required_torque(model, target)
     a_f, a_e = quasi_static_activations(model, theta, omega, torque, space.extensor_rest)
-    start = model.replace(initial_angle=float(target.angle[0])).initial_state()
+    start = model.initial_state()
     lower, upper = np.array(space.lower), np.array(space.upper)
     x = np.concatenate([
         fit_ramps(t, a_f, start.flexor_level, lower[:PER_UNIT], upper[:PER_UNIT]),

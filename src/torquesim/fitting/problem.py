@@ -33,7 +33,7 @@ def fit_step(duration: float, requested: float) -> tuple[float, int]:
 class FitProblem:
     """Everything the objective needs, with the model's arrays packed once.
 
-    The model spans the target: θ0 = first target angle (static equilibrium there, the
+    The model spans the target: θ0 = the first target angle (static equilibrium there, the
     flexor's initial level from it), duration = target span. ``evaluate`` scores
     candidate 18-vectors (see :mod:`torquesim.fitting.objective`) and counts simulations.
     """

@@ -43,6 +43,14 @@ class Target:
         """Sample times from the start of the target, s."""
         return self.time - self.time[0]
 
+    def smoothed(self):
+        """A smoothing spline θ(t − t0) through the samples (smoothing chosen by generalised
+        cross-validation, so exact data are nearly interpolated and noisy data are smoothed);
+        call ``.derivative(n)`` for ω and α."""
+        from scipy.interpolate import make_smoothing_spline
+
+        return make_smoothing_spline(self.elapsed, self.angle)
+
     def angular_velocity(self) -> np.ndarray:
         """dθ/dt at the samples, rad/s (second-order finite differences)."""
         return np.gradient(self.angle, self.time, edge_order=2)
