@@ -171,3 +171,11 @@ def test_implicit_stage_tends_to_the_explicit_velocity_for_a_tiny_step():
         explicit = tg.unit_ce_velocity(stretch, 0.3, 0.3, PF)
         implicit, _ = tg.unit_implicit_ce_velocity(stretch, 0.3, 1.0, 1e-12, 0.3, PF, 0.0)
         assert implicit == pytest.approx(explicit, rel=1e-7, abs=1e-9)
+
+
+@pytest.mark.parametrize("theta_cc", [-2.0, 0.5, 1.66, 2.4, 4.0])
+def test_torque_angle_slope_is_its_derivative(theta_cc):
+    eps = 1e-7
+    numeric = (tg.torque_angle(theta_cc + eps, PF)
+               - tg.torque_angle(theta_cc - eps, PF)) / (2 * eps)
+    assert tg.torque_angle_slope(theta_cc, PF) == pytest.approx(numeric, abs=1e-6)

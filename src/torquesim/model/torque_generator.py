@@ -226,6 +226,15 @@ def torque_angle(theta_cc, p):
 
 
 @njit(cache=True, error_model="numpy")
+def torque_angle_slope(theta_cc, p):
+    """dT_θ/dθ_cc, rad⁻¹ (zero on the floor)."""
+    x = theta_cc - p[THETA_OPT]
+    if 1.0 - p[K2] * x * x > TORQUE_ANGLE_FLOOR:
+        return -2.0 * p[K2] * x
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy")
 def ce_torque_velocity(omega, p):
     """h(ω) = d(ω)·T_ω(ω), N·m: the CE torque at full activation and optimal angle."""
     return differential_activation(omega, p) * tetanic_torque_velocity(omega, p)
@@ -338,12 +347,8 @@ def unit_time_constant(omega_cc, theta_cc, activation, p):
 def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity_activation, p):
     """Residual G(w) and dG/dw of the implicit CE equation (see unit_implicit_ce_velocity)."""
     x = theta_cc_known + sign * gamma_h * w
-    dx = x - p[THETA_OPT]
-    shape = 1.0 - p[K2] * dx * dx
-    if shape > TORQUE_ANGLE_FLOOR:
-        t_theta, t_theta_slope = shape, -2.0 * p[K2] * dx * sign * gamma_h
-    else:
-        t_theta, t_theta_slope = TORQUE_ANGLE_FLOOR, 0.0
+    t_theta = torque_angle(x, p)
+    t_theta_slope = torque_angle_slope(x, p) * sign * gamma_h  # d T_θ / d w
     stretch = stretch_known + gamma_h * w
     h_value = ce_torque_velocity(w, p)
     g = capacity_activation * t_theta * h_value - p[CE_DAMPING] * w
