@@ -81,7 +81,6 @@ def fit_ramps(t, level, initial_level: float, lower, upper) -> np.ndarray:
             guess += [start - end, duration, float(np.interp(c + duration / 2, t, level))]
             end = start + duration
         x0 = np.clip(guess, lower, upper)
-        x0 = np.minimum(np.maximum(x0, lower), upper)
         fit = least_squares(residual, x0, bounds=(lower, upper), x_scale="jac")
         if best is None or fit.cost < best.cost:
             best = fit

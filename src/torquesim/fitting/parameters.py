@@ -85,8 +85,8 @@ class ParameterSpace:
         return [(self.lower[i], self.upper[i]) for i in self.free]
 
     def full(self, free_values, base) -> np.ndarray:
-        """All 18 values: ``free_values`` in the free slots, frozen values, and ``base``
-        (an 18-vector) nowhere else (it only fills the frozen slots not given a value)."""
+        """All 18 values: a copy of ``base`` (an 18-vector) with ``free_values`` in the free
+        slots and the frozen values in the frozen ones."""
         x = np.array(base, dtype=float)
         for name, value in self.frozen.items():
             x[PARAMETER_NAMES.index(name)] = value
