@@ -78,6 +78,19 @@ def test_inversion_round_trip(fraction, unit):
     assert tg.ce_torque_velocity(w, p) == pytest.approx(target, rel=1e-12, abs=1e-12)
 
 
+@settings(max_examples=400, deadline=None)
+@given(fraction=st.floats(1e-9, 1 - 1e-12), unit=st.sampled_from([0, 1]),
+       guess=st.one_of(st.floats(-30.0, 30.0), st.just(math.nan)))
+def test_inversion_root_does_not_depend_on_the_guess(fraction, unit, guess):
+    """The solvers seed the CE root finder with their previous CE velocity: any seed, on
+    either branch, outside [−ω_max, ω_max] or none, gives the same root."""
+    p = (PF, PE)[unit]
+    target = fraction * p[tg.H_ECC_LIMIT]
+    w = tg.ce_velocity(target, p, guess)
+    assert w == pytest.approx(tg.ce_velocity(target, p), rel=1e-13, abs=1e-13)
+    assert tg.ce_torque_velocity(w, p) == pytest.approx(target, rel=1e-12, abs=1e-12)
+
+
 @pytest.mark.parametrize("p", [PF, PE])
 def test_inversion_clamps(p):
     wmax = p[tg.OMEGA_MAX]

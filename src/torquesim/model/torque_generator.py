@@ -247,8 +247,13 @@ def ce_torque_velocity_slope(omega, p):
             + differential_activation(omega, p) * tetanic_torque_velocity_slope(omega, p))
 
 
+#: Newton's method in ce_velocity stops once its step is below this fraction of u; being
+#: quadratically convergent, the returned root is then accurate to about 1e-15 relative.
+INVERSION_STEP_TOLERANCE = 1.0e-8
+
+
 @njit(cache=True, error_model="numpy")
-def ce_velocity(target, p):
+def ce_velocity(target, p, guess=np.nan):
     """CE angular velocity ω_cc solving h(ω_cc) = target (MODEL.md §2.5), rad/s.
 
     ``target = T / (max(a, 0.01)·T_θ(θ_cc))`` in N·m. Clamps: target ≤ 0 (slack SE) gives
@@ -256,9 +261,11 @@ def ce_velocity(target, p):
     (concentric or eccentric) that holds it, so the kink of T_ω at ω = 0 is never crossed.
 
     On each branch T_ω is linear in u = 1/(ω_c + ω) (concentric: T_ω = C·u − T_c) or in
-    u = 1/(ω_e − ω) (eccentric: T_ω = E·u + T_max), so h(u) = d·T_ω is nearly linear in u and
-    Newton's method in u, started from the closed-form inverse with d frozen, converges in a
-    few iterations. It is safeguarded by bisection on the branch's bracket.
+    u = 1/(ω_e − ω) (eccentric: T_ω = E·u + T_max), so h(u) = d·T_ω is nearly linear in u.
+    Newton's method in u starts from ``guess`` (rad/s; a solver passes the CE velocity of its
+    previous evaluation, usually within 1e-4 of the root) when it lies on the root's branch,
+    else from the closed-form inverse with d frozen at d(0). It is safeguarded by bisection on
+    the branch's bracket. The root does not depend on the guess beyond rounding.
     """
     wmax = p[OMEGA_MAX]
     if target <= 0.0:
@@ -268,7 +275,6 @@ def ce_velocity(target, p):
     if target == p[H_ISOMETRIC]:
         return 0.0
     concentric = target < p[H_ISOMETRIC]
-    d_iso = p[H_ISOMETRIC] / p[T0]  # d(0)
     if concentric:
         # u = 1/(ω_c + ω) ∈ [1/(ω_c + ω_max), 1/ω_c]; h increases with u.
         scale, offset = p[C_CONC], -p[T_C]
@@ -279,32 +285,34 @@ def ce_velocity(target, p):
         scale, offset = p[E_ECC], p[T_MAX]
         shift, sign = p[OMEGA_E], -1.0
         lo, hi = 1.0 / (p[OMEGA_E] + wmax), 1.0 / p[OMEGA_E]
-    increasing = concentric
-    u = (target / d_iso - offset) / scale
+    if (guess > 0.0) == concentric and abs(guess) < wmax:  # False for NaN
+        u = 1.0 / (shift + sign * guess)
+    else:
+        u = (target * p[T0] / p[H_ISOMETRIC] - offset) / scale  # d frozen at d(0) = h(0)/T0
+    d_range = 1.0 - p[A_MIN]
+    inv_rate = 1.0 / p[OMEGA_R]
     for _ in range(100):
         if not (lo < u < hi):
             u = 0.5 * (lo + hi)
         w = sign * (1.0 / u - shift)
-        e = math.exp(-(w - p[OMEGA_1]) / p[OMEGA_R])
-        sig = 1.0 / (1.0 + e)
-        d = p[A_MIN] + (1.0 - p[A_MIN]) * sig
-        d_slope = (1.0 - p[A_MIN]) * sig * (1.0 - sig) / p[OMEGA_R]  # dd/dω
+        sig = 1.0 / (1.0 + math.exp((p[OMEGA_1] - w) * inv_rate))
+        d = p[A_MIN] + d_range * sig
         tet = scale * u + offset
         f = d * tet - target
         if f == 0.0:
             return w
-        if (f > 0.0) == increasing:
+        if (f > 0.0) == concentric:
             hi = u
         else:
             lo = u
-        # dω/du = −sign/u²
-        slope = d * scale - d_slope * sign * tet / (u * u)
-        u_new = u - f / slope
-        if abs(u_new - u) <= 1e-10 * u:
-            return sign * (1.0 / u_new - shift)
+        # dh/du = d·scale + (dd/dω)·T_ω·dω/du, with dω/du = −sign/u²
+        slope = d * scale - d_range * sig * (1.0 - sig) * inv_rate * sign * tet / (u * u)
+        step = f / slope
+        if abs(step) <= INVERSION_STEP_TOLERANCE * u:
+            return sign * (1.0 / (u - step) - shift)
         if hi - lo <= 1e-16 * u:
             return w
-        u = u_new
+        u -= step
     return sign * (1.0 / u - shift)
 
 
@@ -315,16 +323,17 @@ def unit_torque(stretch, p):
 
 
 @njit(cache=True, error_model="numpy")
-def unit_ce_velocity(stretch, theta_cc, activation, p):
+def unit_ce_velocity(stretch, theta_cc, activation, p, guess=np.nan):
     """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``.
 
     With ``ce_damping`` β > 0 it solves a·T_θ·h(ω) − β·ω = k·max(s, 0) (the implicit stage
-    equation with a zero step)."""
+    equation with a zero step). ``guess`` (rad/s) only seeds the root finder."""
     if p[CE_DAMPING] > 0.0:
-        return unit_implicit_ce_velocity(stretch, theta_cc, 1.0, 0.0, activation, p, 0.0)[0]
+        start = guess if math.isfinite(guess) else 0.0
+        return unit_implicit_ce_velocity(stretch, theta_cc, 1.0, 0.0, activation, p, start)[0]
     capacity = max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
     target = unit_torque(stretch, p) / capacity
-    return ce_velocity(target, p)
+    return ce_velocity(target, p, guess)
 
 
 @njit(cache=True, error_model="numpy")

@@ -71,20 +71,22 @@ def rk4_monolithic(y0, h, n_steps, b, pf, pe, af, ae, out, stats):
     """Classical RK4 on the whole state y = (θ, ω, θ_cc,F, θ_cc,E) (technique 2).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, 4).
+    Each stage seeds the CE root finder with the previous stage's CE velocities.
     """
     th, om, tf, te = y0[0], y0[1], y0[2], y0[3]
     out[0, 0], out[0, 1], out[0, 2], out[0, 3] = th, om, tf, te
     half = 0.5 * h
+    k4 = (0.0, 0.0, np.nan, np.nan)
     for n in range(n_steps):
         t = n * h
-        k1 = elbow_rates(t, th, om, tf, te, b, pf, pe, af, ae)
+        k1 = elbow_rates(t, th, om, tf, te, b, pf, pe, af, ae, k4[2], -k4[3])
         _record_stiffness(stats, t, h, tf, te, k1[2], k1[3], pf, pe, af, ae)
         k2 = elbow_rates(t + half, th + half * k1[0], om + half * k1[1], tf + half * k1[2],
-                         te + half * k1[3], b, pf, pe, af, ae)
+                         te + half * k1[3], b, pf, pe, af, ae, k1[2], -k1[3])
         k3 = elbow_rates(t + half, th + half * k2[0], om + half * k2[1], tf + half * k2[2],
-                         te + half * k2[3], b, pf, pe, af, ae)
+                         te + half * k2[3], b, pf, pe, af, ae, k2[2], -k2[3])
         k4 = elbow_rates(t + h, th + h * k3[0], om + h * k3[1], tf + h * k3[2],
-                         te + h * k3[3], b, pf, pe, af, ae)
+                         te + h * k3[3], b, pf, pe, af, ae, k3[2], -k3[3])
         w = h / 6.0
         th += w * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])
         om += w * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1])
@@ -126,20 +128,21 @@ def _muscle_rk4(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe,
     hs = h / substeps
     half = 0.5 * hs
     rate = theta_slope / h
+    k4 = start_rate  # the previous sub-step's last stage: seeds the next first stage
     for j in range(substeps):
         s = j * hs
         ts = t + s
         if j == 0:
             k1 = start_rate
         else:
-            k1 = muscle_rates(ts, theta0 + rate * s, tf, te, pf, pe, af, ae)
+            k1 = muscle_rates(ts, theta0 + rate * s, tf, te, pf, pe, af, ae, k4[0], -k4[1])
         th_mid = theta0 + rate * (s + half)
         k2 = muscle_rates(ts + half, th_mid, tf + half * k1[0], te + half * k1[1],
-                          pf, pe, af, ae)
+                          pf, pe, af, ae, k1[0], -k1[1])
         k3 = muscle_rates(ts + half, th_mid, tf + half * k2[0], te + half * k2[1],
-                          pf, pe, af, ae)
+                          pf, pe, af, ae, k2[0], -k2[1])
         k4 = muscle_rates(ts + hs, theta0 + rate * (s + hs), tf + hs * k3[0],
-                          te + hs * k3[1], pf, pe, af, ae)
+                          te + hs * k3[1], pf, pe, af, ae, k3[0], -k3[1])
         w = hs / 6.0
         tf += w * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])
         te += w * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1])
@@ -200,26 +203,27 @@ def _muscle_step(t, tf, te, h, substeps, theta0, theta_slope, start_rate, pf, pe
 
 
 @njit(cache=True, error_model="numpy")
-def _stage_exchange_step(t, th, om, tf, te, h, b, pf, pe, af, ae):
+def _stage_exchange_step(t, th, om, tf, te, h, start_rate, b, pf, pe, af, ae):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
     The body stage sees the torque of the muscle stage state and the muscle stage sees the
     body stage angle: algebraically this is monolithic RK4, written through the two parts.
+    ``start_rate`` (muscle rates at the step start) seeds the first stage's CE root finder.
     """
     half = 0.5 * h
     kb1 = body_rates(th, om, net_muscle_torque(th, tf, te, pf, pe), b)
-    km1 = muscle_rates(t, th, tf, te, pf, pe, af, ae)
+    km1 = muscle_rates(t, th, tf, te, pf, pe, af, ae, start_rate[0], -start_rate[1])
     th2, om2, tf2, te2 = th + half * kb1[0], om + half * kb1[1], tf + half * km1[0], \
         te + half * km1[1]
     kb2 = body_rates(th2, om2, net_muscle_torque(th2, tf2, te2, pf, pe), b)
-    km2 = muscle_rates(t + half, th2, tf2, te2, pf, pe, af, ae)
+    km2 = muscle_rates(t + half, th2, tf2, te2, pf, pe, af, ae, km1[0], -km1[1])
     th3, om3, tf3, te3 = th + half * kb2[0], om + half * kb2[1], tf + half * km2[0], \
         te + half * km2[1]
     kb3 = body_rates(th3, om3, net_muscle_torque(th3, tf3, te3, pf, pe), b)
-    km3 = muscle_rates(t + half, th3, tf3, te3, pf, pe, af, ae)
+    km3 = muscle_rates(t + half, th3, tf3, te3, pf, pe, af, ae, km2[0], -km2[1])
     th4, om4, tf4, te4 = th + h * kb3[0], om + h * kb3[1], tf + h * km3[0], te + h * km3[1]
     kb4 = body_rates(th4, om4, net_muscle_torque(th4, tf4, te4, pf, pe), b)
-    km4 = muscle_rates(t + h, th4, tf4, te4, pf, pe, af, ae)
+    km4 = muscle_rates(t + h, th4, tf4, te4, pf, pe, af, ae, km3[0], -km3[1])
     w = h / 6.0
     return (th + w * (kb1[0] + 2.0 * (kb2[0] + kb3[0]) + kb4[0]),
             om + w * (kb1[1] + 2.0 * (kb2[1] + kb3[1]) + kb4[1]),
@@ -249,14 +253,16 @@ def rk4_partitioned(y0, h, n_steps, b, pf, pe, af, ae, coupling, out, stats):
     th_prev = th
     torque_prev = net_muscle_torque(th, tf, te, pf, pe)
     hm = h / substeps
+    rate = (np.nan, np.nan)
     for n in range(n_steps):
         t = n * h
         torque_n = net_muscle_torque(th, tf, te, pf, pe)
-        rate = muscle_rates(t, th, tf, te, pf, pe, af, ae)
+        rate = muscle_rates(t, th, tf, te, pf, pe, af, ae, rate[0], -rate[1])
         stats[NFEV_MUSCLE] += 1
         _record_stiffness(stats, t, hm, tf, te, rate[0], rate[1], pf, pe, af, ae)
         if order == EVERY_STAGE:
-            th1, om1, tf1, te1 = _stage_exchange_step(t, th, om, tf, te, h, b, pf, pe, af, ae)
+            th1, om1, tf1, te1 = _stage_exchange_step(t, th, om, tf, te, h, rate,
+                                                      b, pf, pe, af, ae)
             stats[NFEV_BODY] += 4
             stats[NFEV_MUSCLE] += 4
             stats[SWEEPS] += 1

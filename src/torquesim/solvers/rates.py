@@ -1,11 +1,14 @@
 """Right-hand sides of the two parts of the model, compiled (MODEL.md §2, §4).
 
 Body part: (θ, ω) with input T_net.  Muscle part: (θ_cc,F, θ_cc,E) with input θ.
-Each function is one equation; the solvers combine them.
+Each function is one equation; the solvers combine them. The muscle rates take the CE
+velocities of the solver's previous evaluation as ``guess_f``, ``guess_e`` (rad/s, positive =
+concentric): they only seed the root finder of the CE equation (NaN: no guess).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from ..model.activation import activation
@@ -33,15 +36,17 @@ def net_muscle_torque(theta, theta_cc_f, theta_cc_e, pf, pe):
 
 
 @njit(cache=True, error_model="numpy")
-def flexor_rate(t, theta, theta_cc, pf, af):
+def flexor_rate(t, theta, theta_cc, pf, af, guess=np.nan):
     """dθ_cc,F/dt = ω_F, rad/s (flexor shortening moves its CE angle towards flexion)."""
-    return unit_ce_velocity(flexor_stretch(theta, theta_cc), theta_cc, activation(t, af), pf)
+    return unit_ce_velocity(flexor_stretch(theta, theta_cc), theta_cc, activation(t, af), pf,
+                            guess)
 
 
 @njit(cache=True, error_model="numpy")
-def extensor_rate(t, theta, theta_cc, pe, ae):
+def extensor_rate(t, theta, theta_cc, pe, ae, guess=np.nan):
     """dθ_cc,E/dt = −ω_E, rad/s (extensor shortening moves its CE angle towards extension)."""
-    return -unit_ce_velocity(extensor_stretch(theta, theta_cc), theta_cc, activation(t, ae), pe)
+    return -unit_ce_velocity(extensor_stretch(theta, theta_cc), theta_cc, activation(t, ae), pe,
+                             guess)
 
 
 @njit(cache=True, error_model="numpy")
@@ -51,16 +56,18 @@ def body_rates(theta, omega, net_torque, b):
 
 
 @njit(cache=True, error_model="numpy")
-def muscle_rates(t, theta, theta_cc_f, theta_cc_e, pf, pe, af, ae):
+def muscle_rates(t, theta, theta_cc_f, theta_cc_e, pf, pe, af, ae, guess_f=np.nan,
+                 guess_e=np.nan):
     """(dθ_cc,F/dt, dθ_cc,E/dt) of the muscle part for a given joint angle."""
-    return (flexor_rate(t, theta, theta_cc_f, pf, af),
-            extensor_rate(t, theta, theta_cc_e, pe, ae))
+    return (flexor_rate(t, theta, theta_cc_f, pf, af, guess_f),
+            extensor_rate(t, theta, theta_cc_e, pe, ae, guess_e))
 
 
 @njit(cache=True, error_model="numpy")
-def elbow_rates(t, theta, omega, theta_cc_f, theta_cc_e, b, pf, pe, af, ae):
+def elbow_rates(t, theta, omega, theta_cc_f, theta_cc_e, b, pf, pe, af, ae, guess_f=np.nan,
+                guess_e=np.nan):
     """dy/dt of the whole model, y = (θ, ω, θ_cc,F, θ_cc,E): body and muscles together."""
     d_theta, d_omega = body_rates(
         theta, omega, net_muscle_torque(theta, theta_cc_f, theta_cc_e, pf, pe), b)
-    d_f, d_e = muscle_rates(t, theta, theta_cc_f, theta_cc_e, pf, pe, af, ae)
+    d_f, d_e = muscle_rates(t, theta, theta_cc_f, theta_cc_e, pf, pe, af, ae, guess_f, guess_e)
     return d_theta, d_omega, d_f, d_e
