@@ -247,73 +247,87 @@ def ce_torque_velocity_slope(omega, p):
             + differential_activation(omega, p) * tetanic_torque_velocity_slope(omega, p))
 
 
-#: Newton's method in ce_velocity stops once its step is below this fraction of u; being
-#: quadratically convergent, the returned root is then accurate to about 1e-15 relative.
-INVERSION_STEP_TOLERANCE = 1.0e-8
+#: ce_velocity accepts a Halley step shorter than this (rad/s): convergence is cubic, so the
+#: root is then exact to about 1e-16 rad/s. A plain Newton step must be 100× shorter.
+INVERSION_STEP_TOLERANCE = 1.0e-6
 
 
 @njit(cache=True, error_model="numpy")
-def ce_velocity(target, p, guess=np.nan):
-    """CE angular velocity ω_cc solving h(ω_cc) = target (MODEL.md §2.5), rad/s.
+def ce_velocity(target, p, guess=np.nan, damping=0.0):
+    """CE angular velocity ω_cc solving f(ω) = h(ω) − c·ω − target = 0 (MODEL.md §2.5), rad/s.
 
-    ``target = T / (max(a, 0.01)·T_θ(θ_cc))`` in N·m. Clamps: target ≤ 0 (slack SE) gives
-    +ω_max; target ≥ h(−ω_max) gives −ω_max. Otherwise the unique root, on the branch
-    (concentric or eccentric) that holds it, so the kink of T_ω at ω = 0 is never crossed.
+    ``target = T / (max(a, 0.01)·T_θ(θ_cc))`` in N·m, ``damping`` c = β/(max(a, 0.01)·T_θ) in
+    N·m·s/rad (0, the abstract's model, unless the unit has ``ce_damping`` β). Clamps: with
+    c = 0 a target ≤ 0 (slack SE) gives +ω_max; a target ≥ h(−ω_max) + c·ω_max gives −ω_max.
+    Otherwise the unique root, on the branch (concentric or eccentric) that holds it, so the
+    kink of T_ω at ω = 0 is never crossed: f is smooth and decreasing on the branch.
 
-    On each branch T_ω is linear in u = 1/(ω_c + ω) (concentric: T_ω = C·u − T_c) or in
-    u = 1/(ω_e − ω) (eccentric: T_ω = E·u + T_max), so h(u) = d·T_ω is nearly linear in u.
-    Newton's method in u starts from ``guess`` (rad/s; a solver passes the CE velocity of its
-    previous evaluation, usually within 1e-4 of the root) when it lies on the root's branch,
-    else from the closed-form inverse with d frozen at d(0). It is safeguarded by bisection on
-    the branch's bracket. The root does not depend on the guess beyond rounding.
+    Halley's method (cubic convergence) starts from ``guess`` (rad/s; the solvers pass a
+    prediction from their previous evaluations, usually within 1e-6 rad/s of the root, so one
+    step suffices) when it lies on the root's branch, else from the closed-form inverse of T_ω
+    with d frozen at d(0) and c ignored. Each step costs one exp and one division (f, f', f''
+    are scaled by powers of q = 1 + exp(−(ω − ω_1)/ω_r)). It is safeguarded by bisection on the
+    branch's bracket, and falls back to a Newton step where Halley's denominator is not
+    positive. The root does not depend on the guess beyond rounding.
     """
     wmax = p[OMEGA_MAX]
-    if target <= 0.0:
+    if target <= 0.0 and damping == 0.0:
         return wmax
-    if target >= p[H_ECC_LIMIT]:
+    if target >= p[H_ECC_LIMIT] + damping * wmax:
         return -wmax
     if target == p[H_ISOMETRIC]:
         return 0.0
-    concentric = target < p[H_ISOMETRIC]
-    if concentric:
-        # u = 1/(ω_c + ω) ∈ [1/(ω_c + ω_max), 1/ω_c]; h increases with u.
-        scale, offset = p[C_CONC], -p[T_C]
-        shift, sign = p[OMEGA_C], 1.0
-        lo, hi = 1.0 / (p[OMEGA_C] + wmax), 1.0 / p[OMEGA_C]
+    # On the branch, with v = shift + σ·ω and u = 1/v: T_ω = scale·u + offset,
+    # dT_ω/dω = −σ·scale·u², d²T_ω/dω² = 2·scale·u³.
+    if target < p[H_ISOMETRIC]:  # concentric: T_ω = C/(ω_c + ω) − T_c
+        scale, offset, shift, sigma = p[C_CONC], -p[T_C], p[OMEGA_C], 1.0
+        lo, hi = 0.0, wmax
+    else:  # eccentric: T_ω = E/(ω_e − ω) + T_max
+        scale, offset, shift, sigma = p[E_ECC], p[T_MAX], p[OMEGA_E], -1.0
+        lo, hi = -wmax, 0.0
+    if lo < guess < hi:  # False for NaN
+        w = guess
     else:
-        # u = 1/(ω_e − ω) ∈ [1/(ω_e + ω_max), 1/ω_e]; h decreases with u (E < 0).
-        scale, offset = p[E_ECC], p[T_MAX]
-        shift, sign = p[OMEGA_E], -1.0
-        lo, hi = 1.0 / (p[OMEGA_E] + wmax), 1.0 / p[OMEGA_E]
-    if (guess > 0.0) == concentric and abs(guess) < wmax:  # False for NaN
-        u = 1.0 / (shift + sign * guess)
-    else:
-        u = (target * p[T0] / p[H_ISOMETRIC] - offset) / scale  # d frozen at d(0) = h(0)/T0
-    d_range = 1.0 - p[A_MIN]
+        w = sigma * (scale / (target * p[T0] / p[H_ISOMETRIC] - offset) - shift)
+    a_min = p[A_MIN]
+    d_range = 1.0 - a_min
     inv_rate = 1.0 / p[OMEGA_R]
     for _ in range(100):
-        if not (lo < u < hi):
-            u = 0.5 * (lo + hi)
-        w = sign * (1.0 / u - shift)
-        sig = 1.0 / (1.0 + math.exp((p[OMEGA_1] - w) * inv_rate))
-        d = p[A_MIN] + d_range * sig
+        if not (lo < w < hi):
+            w = 0.5 * (lo + hi)
+        u = 1.0 / (shift + sigma * w)
         tet = scale * u + offset
-        f = d * tet - target
+        tet1 = -sigma * scale * u * u
+        tet2 = 2.0 * scale * u * u * u
+        e = math.exp((p[OMEGA_1] - w) * inv_rate)
+        q = 1.0 + e
+        # d = D/q, d' = D1/q², d'' = D2/q³  (d = a_min + (1 − a_min)/q)
+        big_d = a_min * q + d_range
+        big_d1 = d_range * e * inv_rate
+        big_d2 = big_d1 * (e - 1.0) * inv_rate
+        # F = q·f, F1 = q²·f', F2 = q³·f''
+        f = big_d * tet - q * (damping * w + target)
+        f1 = big_d1 * tet + q * (big_d * tet1 - damping * q)
+        f2 = big_d2 * tet + q * (2.0 * big_d1 * tet1 + q * big_d * tet2)
         if f == 0.0:
             return w
-        if (f > 0.0) == concentric:
-            hi = u
+        if f > 0.0:
+            lo = w
         else:
-            lo = u
-        # dh/du = d·scale + (dd/dω)·T_ω·dω/du, with dω/du = −sign/u²
-        slope = d * scale - d_range * sig * (1.0 - sig) * inv_rate * sign * tet / (u * u)
-        step = f / slope
-        if abs(step) <= INVERSION_STEP_TOLERANCE * u:
-            return sign * (1.0 / (u - step) - shift)
-        if hi - lo <= 1e-16 * u:
+            hi = w
+        denominator = 2.0 * f1 * f1 - f * f2
+        if denominator > 0.0:  # Halley: 2·f·f'/(2·f'² − f·f'')
+            step = 2.0 * f * f1 * q / denominator
+            tolerance = INVERSION_STEP_TOLERANCE
+        else:  # Newton: f/f'
+            step = f * q / f1
+            tolerance = 0.01 * INVERSION_STEP_TOLERANCE
+        if abs(step) <= tolerance:
+            return w - step
+        if hi - lo <= 1e-15 * (1.0 + abs(w)):
             return w
-        u -= step
-    return sign * (1.0 / u - shift)
+        w -= step
+    return w
 
 
 @njit(cache=True, error_model="numpy")
@@ -322,18 +336,14 @@ def unit_torque(stretch, p):
     return p[K_SE] * max(stretch, 0.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def unit_ce_velocity(stretch, theta_cc, activation, p, guess=np.nan):
     """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``.
 
-    With ``ce_damping`` β > 0 it solves a·T_θ·h(ω) − β·ω = k·max(s, 0) (the implicit stage
-    equation with a zero step). ``guess`` (rad/s) only seeds the root finder."""
-    if p[CE_DAMPING] > 0.0:
-        start = guess if math.isfinite(guess) else 0.0
-        return unit_implicit_ce_velocity(stretch, theta_cc, 1.0, 0.0, activation, p, start)[0]
+    It solves max(a, 0.01)·T_θ·h(ω) − β·ω = k·max(s, 0), β = ``ce_damping`` (0 by default).
+    ``guess`` (rad/s) only seeds the root finder."""
     capacity = max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
-    target = unit_torque(stretch, p) / capacity
-    return ce_velocity(target, p, guess)
+    return ce_velocity(unit_torque(stretch, p) / capacity, p, guess, p[CE_DAMPING] / capacity)
 
 
 @njit(cache=True, error_model="numpy")

@@ -16,46 +16,46 @@ from ..model.body import angular_acceleration
 from ..model.torque_generator import unit_ce_velocity, unit_torque
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def flexor_stretch(theta, theta_cc):
     """Flexor SE stretch s_F = θ_cc,F − θ, rad."""
     return theta_cc - theta
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def extensor_stretch(theta, theta_cc):
     """Extensor SE stretch s_E = θ − θ_cc,E, rad."""
     return theta - theta_cc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def net_muscle_torque(theta, theta_cc_f, theta_cc_e, pf, pe):
     """T_net = T_F − T_E, N·m, from the two SE stretches (flexion positive)."""
     return (unit_torque(flexor_stretch(theta, theta_cc_f), pf)
             - unit_torque(extensor_stretch(theta, theta_cc_e), pe))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def flexor_rate(t, theta, theta_cc, pf, af, guess=np.nan):
     """dθ_cc,F/dt = ω_F, rad/s (flexor shortening moves its CE angle towards flexion)."""
     return unit_ce_velocity(flexor_stretch(theta, theta_cc), theta_cc, activation(t, af), pf,
                             guess)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def extensor_rate(t, theta, theta_cc, pe, ae, guess=np.nan):
     """dθ_cc,E/dt = −ω_E, rad/s (extensor shortening moves its CE angle towards extension)."""
     return -unit_ce_velocity(extensor_stretch(theta, theta_cc), theta_cc, activation(t, ae), pe,
                              guess)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def body_rates(theta, omega, net_torque, b):
     """(dθ/dt, dω/dt) of the body part for a given net muscle torque."""
     return omega, angular_acceleration(theta, net_torque, b)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def muscle_rates(t, theta, theta_cc_f, theta_cc_e, pf, pe, af, ae, guess_f=np.nan,
                  guess_e=np.nan):
     """(dθ_cc,F/dt, dθ_cc,E/dt) of the muscle part for a given joint angle."""
@@ -63,7 +63,7 @@ def muscle_rates(t, theta, theta_cc_f, theta_cc_e, pf, pe, af, ae, guess_f=np.na
             extensor_rate(t, theta, theta_cc_e, pe, ae, guess_e))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def elbow_rates(t, theta, omega, theta_cc_f, theta_cc_e, b, pf, pe, af, ae, guess_f=np.nan,
                 guess_e=np.nan):
     """dy/dt of the whole model, y = (θ, ω, θ_cc,F, θ_cc,E): body and muscles together."""
