@@ -131,6 +131,27 @@ def test_time_constant_is_the_linearised_rate(omega, p):
     assert math.isinf(tg.unit_time_constant(p[tg.OMEGA_MAX], theta_cc, a, p))
 
 
+@settings(max_examples=300, deadline=None)
+@given(stretch=st.floats(-0.02, 0.3), theta_cc=st.floats(-0.5, 3.0), a=st.floats(0.0, 1.0),
+       unit=st.sampled_from([0, 1, 2]), guess=st.one_of(st.floats(-20.0, 20.0),
+                                                         st.just(math.nan)))
+def test_guard_time_constant_from_the_root_finder_is_the_closed_form(stretch, theta_cc, a,
+                                                                     unit, guess):
+    """The stability guard takes τ from the slope the root finder ends with: it must be the
+    closed-form τ at the returned CE velocity (inf where the velocity is clamped)."""
+    p = (PF, PE, PF_DAMPED)[unit]
+    w, tau = tg.unit_ce_velocity_and_time_constant(stretch, theta_cc, a, p, guess)
+    assert w == pytest.approx(tg.unit_ce_velocity(stretch, theta_cc, a, p), rel=1e-12,
+                              abs=1e-12)
+    if abs(w) == p[tg.OMEGA_MAX] and math.isfinite(tau):
+        return  # a root that rounds to ±ω_max: the closed form calls it clamped (τ = inf)
+    expected = tg.unit_time_constant(w, theta_cc, a, p)
+    if math.isinf(expected):
+        assert math.isinf(tau)
+    else:
+        assert tau == pytest.approx(expected, rel=1e-5)
+
+
 def test_ce_damping_makes_a_slack_unit_shorten_at_a_finite_speed():
     """With β > 0 a slack SE no longer sends the CE to ω_max: a·T_θ·h(ω) = β·ω instead."""
     w = tg.unit_ce_velocity(-0.01, 1.0, 0.5, PF_DAMPED)

@@ -254,7 +254,18 @@ INVERSION_STEP_TOLERANCE = 1.0e-6
 
 @njit(cache=True, error_model="numpy")
 def ce_velocity(target, p, guess=np.nan, damping=0.0):
-    """CE angular velocity ω_cc solving f(ω) = h(ω) − c·ω − target = 0 (MODEL.md §2.5), rad/s.
+    """CE angular velocity ω_cc solving h(ω_cc) − c·ω_cc = target (MODEL.md §2.5), rad/s.
+
+    See :func:`ce_velocity_and_slope`, which this returns the first part of.
+    """
+    return ce_velocity_and_slope(target, p, guess, damping)[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def ce_velocity_and_slope(target, p, guess, damping):
+    """CE angular velocity ω_cc solving f(ω) = h(ω) − c·ω − target = 0 (MODEL.md §2.5), rad/s,
+    and the slope f'(ω_cc) = h'(ω_cc) − c, N·m·s/rad (−inf where ω_cc is clamped and does not
+    respond to the target; the concentric slope at ω_cc = 0).
 
     ``target = T / (max(a, 0.01)·T_θ(θ_cc))`` in N·m, ``damping`` c = β/(max(a, 0.01)·T_θ) in
     N·m·s/rad (0, the abstract's model, unless the unit has ``ce_damping`` β). Clamps: with
@@ -268,15 +279,16 @@ def ce_velocity(target, p, guess=np.nan, damping=0.0):
     with d frozen at d(0) and c ignored. Each step costs one exp and one division (f, f', f''
     are scaled by powers of q = 1 + exp(−(ω − ω_1)/ω_r)). It is safeguarded by bisection on the
     branch's bracket, and falls back to a Newton step where Halley's denominator is not
-    positive. The root does not depend on the guess beyond rounding.
+    positive. The root does not depend on the guess beyond rounding. The slope is the one of the
+    last step, taken within 1e-6 rad/s of the root.
     """
     wmax = p[OMEGA_MAX]
     if target <= 0.0 and damping == 0.0:
-        return wmax
+        return wmax, -np.inf
     if target >= p[H_ECC_LIMIT] + damping * wmax:
-        return -wmax
+        return -wmax, -np.inf
     if target == p[H_ISOMETRIC]:
-        return 0.0
+        return 0.0, ce_torque_velocity_slope(0.0, p) - damping
     # On the branch, with v = shift + σ·ω and u = 1/v: T_ω = scale·u + offset,
     # dT_ω/dω = −σ·scale·u², d²T_ω/dω² = 2·scale·u³.
     if target < p[H_ISOMETRIC]:  # concentric: T_ω = C/(ω_c + ω) − T_c
@@ -310,7 +322,7 @@ def ce_velocity(target, p, guess=np.nan, damping=0.0):
         f1 = big_d1 * tet + q * (big_d * tet1 - damping * q)
         f2 = big_d2 * tet + q * (2.0 * big_d1 * tet1 + q * big_d * tet2)
         if f == 0.0:
-            return w
+            return w, f1 / (q * q)
         if f > 0.0:
             lo = w
         else:
@@ -322,12 +334,12 @@ def ce_velocity(target, p, guess=np.nan, damping=0.0):
         else:  # Newton: f/f'
             step = f * q / f1
             tolerance = 0.01 * INVERSION_STEP_TOLERANCE
-        if abs(step) <= tolerance:
-            return w - step
+        if abs(step) <= tolerance:  # the root is in the bracket, whatever rounding says
+            return min(max(w - step, lo), hi), f1 / (q * q)
         if hi - lo <= 1e-15 * (1.0 + abs(w)):
-            return w
+            return w, f1 / (q * q)
         w -= step
-    return w
+    return w, f1 / (q * q)
 
 
 @njit(cache=True, error_model="numpy")
@@ -344,6 +356,17 @@ def unit_ce_velocity(stretch, theta_cc, activation, p, guess=np.nan):
     ``guess`` (rad/s) only seeds the root finder."""
     capacity = max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
     return ce_velocity(unit_torque(stretch, p) / capacity, p, guess, p[CE_DAMPING] / capacity)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unit_ce_velocity_and_time_constant(stretch, theta_cc, activation, p, guess):
+    """(ω_cc, τ): :func:`unit_ce_velocity` and the unit's time constant τ (s, as
+    :func:`unit_time_constant`) from the slope the root finder ends with: with
+    f' = h'(ω_cc) − β/(a·T_θ), τ = a·T_θ·|f'|/k = (a·T_θ·|h'| + β)/k. No extra evaluation."""
+    capacity = max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
+    w, slope = ce_velocity_and_slope(unit_torque(stretch, p) / capacity, p, guess,
+                                     p[CE_DAMPING] / capacity)
+    return w, capacity * abs(slope) / p[K_SE]
 
 
 @njit(cache=True, error_model="numpy")

@@ -4,8 +4,9 @@ Both loops take plain float arrays, write the state at every step into ``out`` a
 ``stats`` array (indices below). No Python work happens per step.
 
 Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
-is evaluated (closed form) and the largest step/τ is recorded with its time and unit; explicit
-RK4 is stable for step/τ ≤ 2.785 (:data:`~torquesim.model.torque_generator.RK4_STABILITY_LIMIT`).
+is evaluated (closed form, from the slope the CE root finder ends with, so at no extra cost)
+and the largest step/τ is recorded with its time and unit; explicit RK4 is stable for
+step/τ ≤ 2.785 (:data:`~torquesim.model.torque_generator.RK4_STABILITY_LIMIT`).
 """
 
 from __future__ import annotations
@@ -16,8 +17,14 @@ import numpy as np
 from numba import njit
 
 from ..model.activation import activation
-from ..model.torque_generator import unit_implicit_ce_velocity, unit_time_constant
-from .rates import body_rates, elbow_rates_at, muscle_rates, muscle_rates_at, net_muscle_torque
+from ..model.torque_generator import unit_implicit_ce_velocity
+from .rates import (
+    body_rates,
+    elbow_rates_at,
+    muscle_rates,
+    muscle_rates_and_time_constants_at,
+    net_muscle_torque,
+)
 
 # Indices of the stats array returned by the loops.
 STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
@@ -49,12 +56,9 @@ def _check_state(theta, omega, theta_cc_f, theta_cc_e):
 
 
 @njit(cache=True, error_model="numpy")
-def _record_stiffness(stats, t, h_muscle, theta_cc_f, theta_cc_e, rate_f, rate_e,
-                      pf, pe, a_f, a_e):
-    """Update the largest step/τ seen (the stability guard); rate_* are dθ_cc/dt, a_* the
-    activations at time t."""
-    tau_f = unit_time_constant(rate_f, theta_cc_f, a_f, pf)
-    tau_e = unit_time_constant(-rate_e, theta_cc_e, a_e, pe)
+def _record_stiffness(stats, t, h_muscle, tau_f, tau_e):
+    """Update the largest step/τ seen (the stability guard) with the units' time constants
+    τ_F, τ_E (s) at time t."""
     ratio_f = h_muscle / tau_f
     ratio_e = h_muscle / tau_e
     if ratio_f > stats[WORST_RATIO]:
@@ -98,10 +102,11 @@ def rk4_monolithic(y0, h, n_steps, b, pf, pe, af, ae, out, stats):
         t_next = (n + 1) * h
         a_f_mid, a_e_mid = activation(t + half, af), activation(t + half, ae)
         a_f_next, a_e_next = activation(t_next, af), activation(t_next, ae)
-        k1 = elbow_rates_at(a_f, a_e, th, om, tf, te, b, pf, pe,
-                            _predict(seen[3, 0], seen4_before[0], seen[0, 0]),
-                            _predict(seen[3, 1], seen4_before[1], seen[0, 1]))
-        _record_stiffness(stats, t, h, tf, te, k1[2], k1[3], pf, pe, a_f, a_e)
+        muscle1, tau = muscle_rates_and_time_constants_at(
+            a_f, a_e, th, tf, te, pf, pe, _predict(seen[3, 0], seen4_before[0], seen[0, 0]),
+            _predict(seen[3, 1], seen4_before[1], seen[0, 1]))
+        k1 = body_rates(th, om, net_muscle_torque(th, tf, te, pf, pe), b) + muscle1
+        _record_stiffness(stats, t, h, tau[0], tau[1])
         k2 = elbow_rates_at(a_f_mid, a_e_mid, th + half * k1[0], om + half * k1[1],
                             tf + half * k1[2], te + half * k1[3], b, pf, pe,
                             _predict(k1[2], seen[0, 0], seen[1, 0]),
@@ -290,10 +295,10 @@ def rk4_partitioned(y0, h, n_steps, b, pf, pe, af, ae, coupling, out, stats):
     for n in range(n_steps):
         t = n * h
         torque_n = net_muscle_torque(th, tf, te, pf, pe)
-        a_f, a_e = activation(t, af), activation(t, ae)
-        rate = muscle_rates_at(a_f, a_e, th, tf, te, pf, pe, rate[0], -rate[1])
+        rate, tau = muscle_rates_and_time_constants_at(activation(t, af), activation(t, ae),
+                                                       th, tf, te, pf, pe, rate[0], -rate[1])
         stats[NFEV_MUSCLE] += 1
-        _record_stiffness(stats, t, hm, tf, te, rate[0], rate[1], pf, pe, a_f, a_e)
+        _record_stiffness(stats, t, hm, tau[0], tau[1])
         if order == EVERY_STAGE:
             th1, om1, tf1, te1 = _stage_exchange_step(t, th, om, tf, te, h, rate,
                                                       b, pf, pe, af, ae)

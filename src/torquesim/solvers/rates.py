@@ -14,7 +14,11 @@ from numba import njit
 
 from ..model.activation import activation
 from ..model.body import angular_acceleration
-from ..model.torque_generator import unit_ce_velocity, unit_torque
+from ..model.torque_generator import (
+    unit_ce_velocity,
+    unit_ce_velocity_and_time_constant,
+    unit_torque,
+)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -65,6 +69,18 @@ def muscle_rates_at(a_f, a_e, theta, theta_cc_f, theta_cc_e, pf, pe, guess_f=np.
     a_F = ``a_f``, a_E = ``a_e`` (a solver that evaluates a(t) once per stage time)."""
     return (flexor_rate(theta, theta_cc_f, a_f, pf, guess_f),
             extensor_rate(theta, theta_cc_e, a_e, pe, guess_e))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def muscle_rates_and_time_constants_at(a_f, a_e, theta, theta_cc_f, theta_cc_e, pf, pe,
+                                       guess_f, guess_e):
+    """:func:`muscle_rates_at`, and the time constants (τ_F, τ_E) of the two units at that
+    state, s (the stability guard's input, at no extra cost)."""
+    w_f, tau_f = unit_ce_velocity_and_time_constant(flexor_stretch(theta, theta_cc_f),
+                                                    theta_cc_f, a_f, pf, guess_f)
+    w_e, tau_e = unit_ce_velocity_and_time_constant(extensor_stretch(theta, theta_cc_e),
+                                                    theta_cc_e, a_e, pe, guess_e)
+    return (w_f, -w_e), (tau_f, tau_e)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
