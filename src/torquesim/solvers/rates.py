@@ -1,9 +1,9 @@
 """Right-hand sides of the two parts of the model, compiled (MODEL.md §2, §4).
 
 Body part: (θ, ω) with input T_net.  Muscle part: (θ_cc,F, θ_cc,E) with input θ.
-Each function is one equation; the solvers combine them. The muscle rates take the CE
-velocities of the solver's previous evaluation as ``guess_f``, ``guess_e`` (rad/s, positive =
-concentric): they only seed the root finder of the CE equation (NaN: no guess). The ``*_at``
+Each function is one equation; the solvers combine them. The muscle rates take a solver's
+prediction of the CE velocities as ``guess_f``, ``guess_e`` (rad/s, positive = concentric):
+they only seed the root finder of the CE equation (NaN: no guess). The ``*_at``
 forms take the activations a_F, a_E instead of the time and the activation profiles.
 """
 
