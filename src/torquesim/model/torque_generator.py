@@ -349,13 +349,27 @@ def unit_torque(stretch, p):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def ce_capacity(theta_cc, activation, p):
+    """max(a, 0.01)·T_θ(θ_cc), dimensionless: the fraction of h(ω) the CE can produce."""
+    return max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def ce_equation(stretch, theta_cc, activation, p):
+    """(capacity, target, c) of the CE equation h(ω) − c·ω = target (MODEL.md §2.5): capacity
+    max(a, 0.01)·T_θ, target = k·max(s, 0)/capacity in N·m, c = β/capacity in N·m·s/rad."""
+    capacity = ce_capacity(theta_cc, activation, p)
+    return capacity, unit_torque(stretch, p) / capacity, p[CE_DAMPING] / capacity
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def unit_ce_velocity(stretch, theta_cc, activation, p, guess=np.nan):
     """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``.
 
     It solves max(a, 0.01)·T_θ·h(ω) − β·ω = k·max(s, 0), β = ``ce_damping`` (0 by default).
     ``guess`` (rad/s) only seeds the root finder."""
-    capacity = max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
-    return ce_velocity(unit_torque(stretch, p) / capacity, p, guess, p[CE_DAMPING] / capacity)
+    _, target, damping = ce_equation(stretch, theta_cc, activation, p)
+    return ce_velocity(target, p, guess, damping)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -363,9 +377,8 @@ def unit_ce_velocity_and_time_constant(stretch, theta_cc, activation, p, guess):
     """(ω_cc, τ): :func:`unit_ce_velocity` and the unit's time constant τ (s, as
     :func:`unit_time_constant`) from the slope the root finder ends with: with
     f' = h'(ω_cc) − β/(a·T_θ), τ = a·T_θ·|f'|/k = (a·T_θ·|h'| + β)/k. No extra evaluation."""
-    capacity = max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
-    w, slope = ce_velocity_and_slope(unit_torque(stretch, p) / capacity, p, guess,
-                                     p[CE_DAMPING] / capacity)
+    capacity, target, damping = ce_equation(stretch, theta_cc, activation, p)
+    w, slope = ce_velocity_and_slope(target, p, guess, damping)
     return w, capacity * abs(slope) / p[K_SE]
 
 
@@ -381,8 +394,7 @@ def unit_time_constant(omega_cc, theta_cc, activation, p):
     if omega_cc >= wmax or omega_cc <= -wmax:
         return np.inf
     slope = abs(ce_torque_velocity_slope(omega_cc, p))
-    return (max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p) * slope
-            + p[CE_DAMPING]) / p[K_SE]
+    return (ce_capacity(theta_cc, activation, p) * slope + p[CE_DAMPING]) / p[K_SE]
 
 
 @njit(cache=True, error_model="numpy")
