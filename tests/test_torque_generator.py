@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 import torquesim as ts
 from torquesim.model import torque_generator as tg
+from torquesim.solvers.sdirk import unit_implicit_ce_velocity
 
 FLEXOR = ts.TorqueGeneratorUnit.flexor_default()
 PF = FLEXOR.to_array()
@@ -188,7 +189,7 @@ def test_implicit_stage_solves_the_ce_equation_at_its_own_state(stretch, theta_c
     """w from the implicit stage solve is the explicit CE velocity at the stage state
     θ_cc + sign·γh·w, stretch + γh·w (clamps included), whatever the Newton guess."""
     p = PF if flexor else PE
-    w, evaluations = tg.unit_implicit_ce_velocity(stretch, theta_cc, sign, gamma_h, a, p, guess)
+    w, evaluations = unit_implicit_ce_velocity(stretch, theta_cc, sign, gamma_h, a, p, guess)
     assert -p[tg.OMEGA_MAX] <= w <= p[tg.OMEGA_MAX] and evaluations < 60
     explicit = tg.unit_ce_velocity(stretch + gamma_h * w, theta_cc + sign * gamma_h * w, a, p)
     # compare in torque units: the CE equation's residual, relative to the isometric torque
@@ -203,7 +204,7 @@ def test_implicit_stage_solves_the_ce_equation_at_its_own_state(stretch, theta_c
 def test_implicit_stage_tends_to_the_explicit_velocity_for_a_tiny_step():
     for stretch in (0.0005, 0.05, 0.2, 0.4):
         explicit = tg.unit_ce_velocity(stretch, 0.3, 0.3, PF)
-        implicit, _ = tg.unit_implicit_ce_velocity(stretch, 0.3, 1.0, 1e-12, 0.3, PF, 0.0)
+        implicit, _ = unit_implicit_ce_velocity(stretch, 0.3, 1.0, 1e-12, 0.3, PF, 0.0)
         assert implicit == pytest.approx(explicit, rel=1e-7, abs=1e-9)
 
 

@@ -1,18 +1,25 @@
-"""The elbow model: body, torque generator units, activation profiles."""
+"""The model: planar chains of segments, torque generator units, activation profiles."""
 
 from .activation import ActivationProfile, Ramp
 from .body import BodyParameters
-from .elbow import STATE_NAMES, ElbowModel, InitialState, PackedModel, default_model
+from .chain import ChainModel, ChainStart, Joint, PackedChain, PointLoad, Segment, Unit, as_chain
+from .elbow import ElbowModel, InitialState, default_model
 from .torque_generator import TorqueGeneratorUnit
 
 __all__ = [
-    "STATE_NAMES",
     "ActivationProfile",
     "BodyParameters",
+    "ChainModel",
+    "ChainStart",
     "ElbowModel",
     "InitialState",
-    "PackedModel",
+    "Joint",
+    "PackedChain",
+    "PointLoad",
     "Ramp",
+    "Segment",
     "TorqueGeneratorUnit",
+    "Unit",
+    "as_chain",
     "default_model",
 ]

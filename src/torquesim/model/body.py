@@ -15,8 +15,9 @@ from numba import njit
 
 from ..errors import ModelError, check_range
 
-# Layout of the packed body parameter array.
-INERTIA, GRAVITY_TORQUE, ENDSTOP_TORQUE, ENDSTOP_SCALE, ENDSTOP_LOW, ENDSTOP_HIGH = range(6)
+# Layout of a packed end-stop array (a chain joint's row, torquesim.model.chain), and of the
+# elbow's packed body array, which adds the inertia and gravity coefficient.
+ENDSTOP_TORQUE, ENDSTOP_SCALE, ENDSTOP_LOW, ENDSTOP_HIGH, INERTIA, GRAVITY_TORQUE = range(6)
 BODY_ARRAY_SIZE = 6
 
 
@@ -132,8 +133,77 @@ def passive_energy(theta, b):
                                     + math.exp((theta - b[ENDSTOP_HIGH]) / s))
 
 
-@njit(cache=True, error_model="numpy")
-def angular_acceleration(theta, net_muscle_torque, b):
-    """dω/dt = (T_net + T_p(θ) − G·sin θ) / I_E, rad/s² (abstract Eq. 1 with end stops)."""
-    return (net_muscle_torque + passive_torque(theta, b)
-            - b[GRAVITY_TORQUE] * math.sin(theta)) / b[INERTIA]
+#: Column of the packed joint array holding the angle offset added to q_k in φ_k (the chain's
+#: base angle for the first joint, 0 for the others).
+ZERO_OFFSET = 4
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def joint_accelerations(q, qd, muscle_torque, seg, jnt, work, qdd):
+    """q̈ (rad/s², into ``qdd``) of a planar open chain (docs/model.md §1):
+
+        M(φ)·φ̈ + c(φ, φ̇) + g(φ) = Q,    φ_k = Σ_{i≤k}(offset_i + q_i)
+
+    in absolute angles φ, with M_kk = A_k, M_jk = L_j·B_k·cos(φ_j − φ_k) (j < k),
+    c_j = Σ_{k≠j} D_jk·sin(φ_j − φ_k)·φ̇_k² (D_jk = L_min(j,k)·B_max(j,k)),
+    g_j = g·B_j·sin φ_j, and the generalized forces Q_j = τ_j − τ_{j+1} of the joint torques
+    τ_j = muscle_torque_j + T_p(q_j) (end stops); then q̈_k = φ̈_k − φ̈_{k−1}. Solved by an
+    LDLᵀ factorization of M (symmetric positive definite). For one segment this is
+    MODEL.md's I_E·dω/dt = T_net + T_p(θ) − G·sin θ, with the same arithmetic.
+
+    ``seg``: (n, 4) segment array of :meth:`ChainModel.segment_array`; ``jnt``: (n, 5)
+    end stops and zero offset; ``work``: (n, n + 4) scratch.
+    """
+    n = q.shape[0]
+    phi = 0.0
+    phid = 0.0
+    rhs = n
+    angle = n + 1
+    speed = n + 2
+    passive = n + 3
+    for k in range(n):
+        phi += jnt[k, ZERO_OFFSET] + q[k]
+        phid += qd[k]
+        work[k, angle] = phi
+        work[k, speed] = phid
+        work[k, passive] = muscle_torque[k] + passive_torque(q[k], jnt[k])
+    for j in range(n):
+        force = work[j, passive]
+        if j + 1 < n:
+            force -= work[j + 1, passive]
+        coriolis = 0.0
+        for k in range(n):
+            if k != j:
+                lo, hi = (j, k) if j < k else (k, j)
+                d_jk = seg[lo, 2] * seg[hi, 1]
+                diff = work[j, angle] - work[k, angle]
+                coriolis += d_jk * math.sin(diff) * work[k, speed] * work[k, speed]
+                if k > j:
+                    work[k, j] = d_jk * math.cos(diff)  # M_kj, lower triangle
+        work[j, rhs] = force - coriolis - seg[j, 3] * math.sin(work[j, angle])
+        work[j, j] = seg[j, 0]
+    # LDLᵀ in place: L below the diagonal, D on it.
+    for j in range(n):
+        d = work[j, j]
+        for k in range(j):
+            d -= work[j, k] * work[j, k] * work[k, k]
+        work[j, j] = d
+        for i in range(j + 1, n):
+            v = work[i, j]
+            for k in range(j):
+                v -= work[i, k] * work[j, k] * work[k, k]
+            work[i, j] = v / d
+    for i in range(n):  # L·z = rhs
+        v = work[i, rhs]
+        for k in range(i):
+            v -= work[i, k] * work[k, rhs]
+        work[i, rhs] = v
+    for i in range(n - 1, -1, -1):  # D·Lᵀ·x = z
+        v = work[i, rhs] / work[i, i]
+        for k in range(i + 1, n):
+            v -= work[k, i] * work[k, rhs]
+        work[i, rhs] = v
+    previous = 0.0
+    for k in range(n):
+        qdd[k] = work[k, rhs] - previous
+        previous = work[k, rhs]

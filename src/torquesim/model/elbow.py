@@ -10,29 +10,12 @@ from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import brentq
-
 from ..errors import ModelError, check_range
 from .activation import ActivationProfile, Ramp
-from .body import BodyParameters, passive_torque
-from .torque_generator import (
-    ACTIVATION_FLOOR,
-    H_ISOMETRIC,
-    TorqueGeneratorUnit,
-    torque_angle,
-)
+from .body import BodyParameters
+from .torque_generator import TorqueGeneratorUnit
 
 STATE_NAMES = ("theta", "omega", "theta_cc_flexor", "theta_cc_extensor")
-
-
-class PackedModel(NamedTuple):
-    """Plain float arrays handed to the compiled solvers."""
-
-    body: np.ndarray
-    flexor: np.ndarray
-    extensor: np.ndarray
-    flexor_activation: np.ndarray
-    extensor_activation: np.ndarray
 
 
 class InitialState(NamedTuple):
@@ -100,53 +83,43 @@ class ElbowModel:
         return replace(self, **changes)
 
     def initial_state(self) -> InitialState:
-        """Static equilibrium at rest at θ0 with ω_cc = 0 in both units (MODEL.md §3).
+        """Static equilibrium at rest at θ0 with ω_cc = 0 in both units (MODEL.md §3), as
+        solved by :meth:`ChainModel.initial_state` on :meth:`to_chain`.
 
         The extensor SE stretch s solves k_E·s = a_0,E·T_θ,E(θ0 − s)·h_E(0); the flexor then
         carries T_F = G·sin θ0 − T_p(θ0) + T_E, so s_F = T_F/k_F and
         a_0,F = T_F / (h_F(0)·T_θ,F(θ0 + s_F)). If the flexor profile gives its own initial
         level, that level is used and the flexor CE starts away from isometric.
         """
-        theta0 = self.initial_angle
-        fp, ep, bp = self.flexor.to_array(), self.extensor.to_array(), self.body.to_array()
-        a_e = max(float(self.extensor_activation.initial_level), ACTIVATION_FLOOR)
-        k_e = self.extensor.se_stiffness
+        try:
+            start = self.to_chain(check=False).initial_state()
+        except ModelError as exc:
+            raise ModelError("initial_angle", exc.reason) from None
+        return InitialState(start.state, float(start.levels[0]), float(start.levels[1]),
+                            float(start.torques[0]), float(start.torques[1]))
 
-        def extensor_balance(s: float) -> float:
-            return k_e * s - a_e * torque_angle(theta0 - s, ep) * ep[H_ISOMETRIC]
+    def to_chain(self, check: bool = True):
+        """This elbow as a one-segment :class:`~torquesim.model.chain.ChainModel` (joint
+        ``elbow``, units ``flexor`` and ``extensor``, the dumbbell a point load)."""
+        from .chain import ChainModel, Joint, PointLoad, Segment, Unit
 
-        s_max = a_e * ep[H_ISOMETRIC] / k_e  # T_θ ≤ 1 bounds the stretch
-        s_e = brentq(extensor_balance, 0.0, s_max * (1 + 1e-12) + 1e-300, xtol=1e-16, rtol=1e-15)
-        torque_e = k_e * s_e
-        torque_f = (self.body.gravity_torque_coefficient * math.sin(theta0)
-                    - passive_torque(theta0, bp) + torque_e)
-        if torque_f <= 0.0:
-            raise ModelError(
-                "initial_angle",
-                f"the arm cannot rest at {math.degrees(theta0):.2f}° with extensor level "
-                f"{a_e:g}: the flexor would have to push ({torque_f:.3g} N·m); allowed: a start "
-                "where the flexor pulls (raise initial_angle or lower the extensor level)")
-        s_f = torque_f / self.flexor.se_stiffness
-        level_f = torque_f / (fp[H_ISOMETRIC] * torque_angle(theta0 + s_f, fp))
-        if self.flexor_activation.initial_level is not None:
-            level_f = float(self.flexor_activation.initial_level)
-        elif level_f > 1.0:
-            raise ModelError(
-                "initial_angle",
-                f"holding the arm at {math.degrees(theta0):.2f}° needs flexor activation "
-                f"{level_f:.3f} > 1; allowed: a start the flexor can hold (activation ≤ 1)")
-        state = np.array([theta0, 0.0, theta0 + s_f, theta0 - s_e])
-        return InitialState(state, level_f, float(self.extensor_activation.initial_level),
-                            torque_f, torque_e)
-
-    def pack(self) -> PackedModel:
-        """The arrays the compiled solvers read (activation initial levels resolved)."""
-        start = self.initial_state()
-        return PackedModel(
-            self.body.to_array(), self.flexor.to_array(), self.extensor.to_array(),
-            self.flexor_activation.to_array(start.flexor_level),
-            self.extensor_activation.to_array(start.extensor_level),
-        )
+        b = self.body
+        segment = Segment("forearm_hand", b.segment_mass, b.segment_com_distance,
+                          b.segment_inertia, b.dumbbell_distance,
+                          (PointLoad("dumbbell", b.dumbbell_mass, b.dumbbell_distance,
+                                     b.dumbbell_inertia),))
+        joint = Joint("elbow", self.initial_angle, b.endstop_torque, b.endstop_angle_scale,
+                      b.endstop_lower_angle, b.endstop_upper_angle)
+        units = (Unit("flexor", "elbow", 1, self.flexor, self.flexor_activation),
+                 Unit("extensor", "elbow", -1, self.extensor, self.extensor_activation))
+        fields = dict(name="elbow_curl", segments=(segment,), joints=(joint,), units=units,
+                      gravity=b.gravity, duration=self.duration)
+        if check:
+            return ChainModel(**fields)
+        chain = object.__new__(ChainModel)
+        for key, value in dict(base_angle=0.0, **fields).items():
+            object.__setattr__(chain, key, value)
+        return chain
 
 
 def default_model() -> ElbowModel:

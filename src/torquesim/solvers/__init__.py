@@ -1,8 +1,8 @@
-"""Solution techniques: monolithic and partitioned RK4, and an implicit reference."""
+"""Solution techniques: monolithic and partitioned RK4, IMEX, and SciPy's adaptive solvers."""
 
 from .coupling import Coupling
-from .result import COLUMNS, RunCost, SimulationResult, StabilityReport
+from .result import RunCost, SimulationResult, StabilityReport, column_units
 from .simulate import METHODS, simulate, step_count
 
-__all__ = ["COLUMNS", "METHODS", "Coupling", "RunCost", "SimulationResult", "StabilityReport",
-           "simulate", "step_count"]
+__all__ = ["METHODS", "Coupling", "RunCost", "SimulationResult", "StabilityReport",
+           "column_units", "simulate", "step_count"]

@@ -1,10 +1,15 @@
-"""Right-hand sides of the two parts of the model, compiled (MODEL.md §2, §4).
+"""Right-hand sides of the two parts of a chain model, compiled (docs/model.md §1–§2).
 
-Body part: (θ, ω) with input T_net.  Muscle part: (θ_cc,F, θ_cc,E) with input θ.
-Each function is one equation; the solvers combine them. The muscle rates take a solver's
-prediction of the CE velocities as ``guess_f``, ``guess_e`` (rad/s, positive = concentric):
-they only seed the root finder of the CE equation (NaN: no guess). The ``*_at``
-forms take the activations a_F, a_E instead of the time and the activation profiles.
+State y = (q, q̇, θ_cc of every unit). Body part: (q, q̇) with input the joint muscle torques;
+muscle part: θ_cc with input the joint angles q. Unit u acts on joint j = ``units[u, 18]``
+with direction d = ``units[u, 19]`` (+1 flexor, −1 extensor):
+
+    SE stretch s_u = d·(θ_cc,u − q_j),   unit torque T_u = k·max(s_u, 0),
+    joint torque τ_j = Σ_u d·T_u,         dθ_cc,u/dt = d·ω_cc,u
+
+with ω_cc,u the CE velocity solving the CE equation (positive = concentric). Each function is
+one equation; the solvers combine them. ``guesses`` (rad/s) are a solver's predictions of the
+CE velocities: they only seed the root finder (NaN: no guess). Arrays are written in place.
 """
 
 from __future__ import annotations
@@ -13,99 +18,75 @@ import numpy as np
 from numba import njit
 
 from ..model.activation import activation
-from ..model.body import angular_acceleration
-from ..model.torque_generator import (
-    unit_ce_velocity,
-    unit_ce_velocity_and_time_constant,
-    unit_torque,
-)
+from ..model.body import joint_accelerations
+from ..model.chain import UNIT_DIRECTION, UNIT_JOINT
+from ..model.torque_generator import unit_ce_velocity_and_time_constant, unit_torque
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def flexor_stretch(theta, theta_cc):
-    """Flexor SE stretch s_F = θ_cc,F − θ, rad."""
-    return theta_cc - theta
+def unit_stretch(q, theta_cc, units, u):
+    """SE stretch of unit u, d·(θ_cc,u − q_j), rad."""
+    return units[u, UNIT_DIRECTION] * (theta_cc - q[int(units[u, UNIT_JOINT])])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def extensor_stretch(theta, theta_cc):
-    """Extensor SE stretch s_E = θ − θ_cc,E, rad."""
-    return theta - theta_cc
+def joint_muscle_torques(q, theta_cc, units, out):
+    """τ_j = Σ_{units on j} d·k·max(s, 0), N·m (flexion positive), into ``out``."""
+    for j in range(out.shape[0]):
+        out[j] = 0.0
+    for u in range(units.shape[0]):
+        d = units[u, UNIT_DIRECTION]
+        out[int(units[u, UNIT_JOINT])] += d * unit_torque(unit_stretch(q, theta_cc[u], units, u),
+                                                           units[u])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def net_muscle_torque(theta, theta_cc_f, theta_cc_e, pf, pe):
-    """T_net = T_F − T_E, N·m, from the two SE stretches (flexion positive)."""
-    return (unit_torque(flexor_stretch(theta, theta_cc_f), pf)
-            - unit_torque(extensor_stretch(theta, theta_cc_e), pe))
+def activations_at(t, profiles, out):
+    """Every unit's activation a_u(t) (packed profile rows), into ``out``."""
+    for u in range(out.shape[0]):
+        out[u] = activation(t, profiles[u])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def flexor_rate(theta, theta_cc, activation_level, pf, guess=np.nan):
-    """dθ_cc,F/dt = ω_F, rad/s (flexor shortening moves its CE angle towards flexion), at
-    activation a_F = ``activation_level``."""
-    return unit_ce_velocity(flexor_stretch(theta, theta_cc), theta_cc, activation_level, pf,
-                            guess)
+def muscle_rates(q, theta_cc, levels, guesses, units, rates, omega_cc, tau):
+    """Muscle part: dθ_cc/dt (into ``rates``), the CE velocities ω_cc (rad/s) and each unit's
+    time constant τ (s, the stability guard's input, from the root finder's last slope), for
+    joint angles ``q`` and activations ``levels``."""
+    for u in range(units.shape[0]):
+        w, tau[u] = unit_ce_velocity_and_time_constant(
+            unit_stretch(q, theta_cc[u], units, u), theta_cc[u], levels[u], units[u],
+            guesses[u])
+        omega_cc[u] = w
+        rates[u] = units[u, UNIT_DIRECTION] * w
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def extensor_rate(theta, theta_cc, activation_level, pe, guess=np.nan):
-    """dθ_cc,E/dt = −ω_E, rad/s (extensor shortening moves its CE angle towards extension), at
-    activation a_E = ``activation_level``."""
-    return -unit_ce_velocity(extensor_stretch(theta, theta_cc), theta_cc, activation_level, pe,
-                             guess)
+def body_rates(y, n, torque, seg, jnt, work, dy):
+    """Body part: dq/dt = q̇ and dq̇/dt = q̈ for joint muscle torques ``torque`` (into
+    dy[:2n]). ``y`` holds q in y[:n] and q̇ in y[n:2n]."""
+    for k in range(n):
+        dy[k] = y[n + k]
+    joint_accelerations(y[:n], y[n:2 * n], torque, seg, jnt, work, dy[n:2 * n])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def body_rates(theta, omega, net_torque, b):
-    """(dθ/dt, dω/dt) of the body part for a given net muscle torque."""
-    return omega, angular_acceleration(theta, net_torque, b)
+def chain_rates(y, levels, guesses, seg, jnt, units, torque, work, dy, omega_cc, tau):
+    """dy/dt of the whole model at activations ``levels``: body and muscles together."""
+    n = seg.shape[0]
+    theta_cc = y[2 * n:]
+    joint_muscle_torques(y[:n], theta_cc, units, torque)
+    body_rates(y, n, torque, seg, jnt, work, dy)
+    muscle_rates(y[:n], theta_cc, levels, guesses, units, dy[2 * n:], omega_cc, tau)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def muscle_rates_at(a_f, a_e, theta, theta_cc_f, theta_cc_e, pf, pe, guess_f=np.nan,
-                    guess_e=np.nan):
-    """(dθ_cc,F/dt, dθ_cc,E/dt) of the muscle part for a given joint angle and activations
-    a_F = ``a_f``, a_E = ``a_e`` (a solver that evaluates a(t) once per stage time)."""
-    return (flexor_rate(theta, theta_cc_f, a_f, pf, guess_f),
-            extensor_rate(theta, theta_cc_e, a_e, pe, guess_e))
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def muscle_rates_and_time_constants_at(a_f, a_e, theta, theta_cc_f, theta_cc_e, pf, pe,
-                                       guess_f, guess_e):
-    """:func:`muscle_rates_at`, and the time constants (τ_F, τ_E) of the two units at that
-    state, s (the stability guard's input, at no extra cost)."""
-    w_f, tau_f = unit_ce_velocity_and_time_constant(flexor_stretch(theta, theta_cc_f),
-                                                    theta_cc_f, a_f, pf, guess_f)
-    w_e, tau_e = unit_ce_velocity_and_time_constant(extensor_stretch(theta, theta_cc_e),
-                                                    theta_cc_e, a_e, pe, guess_e)
-    return (w_f, -w_e), (tau_f, tau_e)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def muscle_rates(t, theta, theta_cc_f, theta_cc_e, pf, pe, af, ae, guess_f=np.nan,
-                 guess_e=np.nan):
-    """(dθ_cc,F/dt, dθ_cc,E/dt) of the muscle part for a given joint angle, at time t (s)."""
-    return muscle_rates_at(activation(t, af), activation(t, ae), theta, theta_cc_f,
-                           theta_cc_e, pf, pe, guess_f, guess_e)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def elbow_rates_at(a_f, a_e, theta, omega, theta_cc_f, theta_cc_e, b, pf, pe, guess_f=np.nan,
-                   guess_e=np.nan):
-    """dy/dt of the whole model, y = (θ, ω, θ_cc,F, θ_cc,E), at activations a_F, a_E."""
-    d_theta, d_omega = body_rates(
-        theta, omega, net_muscle_torque(theta, theta_cc_f, theta_cc_e, pf, pe), b)
-    d_f, d_e = muscle_rates_at(a_f, a_e, theta, theta_cc_f, theta_cc_e, pf, pe, guess_f,
-                               guess_e)
-    return d_theta, d_omega, d_f, d_e
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def elbow_rates(t, theta, omega, theta_cc_f, theta_cc_e, b, pf, pe, af, ae, guess_f=np.nan,
-                guess_e=np.nan):
-    """dy/dt of the whole model, y = (θ, ω, θ_cc,F, θ_cc,E), at time t (s): body and muscles
-    together."""
-    return elbow_rates_at(activation(t, af), activation(t, ae), theta, omega, theta_cc_f,
-                          theta_cc_e, b, pf, pe, guess_f, guess_e)
+@njit(cache=True, error_model="numpy")
+def chain_derivative(t, y, seg, jnt, units, profiles):
+    """dy/dt at time t (s) as a new array: the right-hand side handed to SciPy's solvers."""
+    n = seg.shape[0]
+    nu = units.shape[0]
+    dy = np.empty(y.shape[0])
+    levels = np.empty(nu)
+    activations_at(t, profiles, levels)
+    chain_rates(y, levels, np.full(nu, np.nan), seg, jnt, units, np.empty(n),
+                np.empty((n, n + 4)), dy, np.empty(nu), np.empty(nu))
+    return dy

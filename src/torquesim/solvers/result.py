@@ -8,51 +8,43 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from ..model.activation import activation
-from ..model.elbow import ElbowModel, PackedModel
+from ..model.body import passive_torque
+from ..model.chain import ChainModel, PackedChain
 from ..model.torque_generator import (
     ACTIVATION_FLOOR,
-    RK4_STABILITY_LIMIT,
     unit_ce_velocity,
     unit_time_constant,
     unit_torque,
 )
-from .rates import extensor_stretch, flexor_stretch
-
-#: Output columns, in order (SI units, angles in rad).
-COLUMNS = ("time", "theta", "omega", "theta_cc_flexor", "theta_cc_extensor", "torque_flexor",
-           "torque_extensor", "torque_net", "activation_flexor", "activation_extensor",
-           "omega_cc_flexor", "omega_cc_extensor")
-UNITS = {"time": "s", "theta": "rad", "omega": "rad/s", "theta_cc_flexor": "rad",
-         "theta_cc_extensor": "rad", "torque_flexor": "N·m", "torque_extensor": "N·m",
-         "torque_net": "N·m", "activation_flexor": "-", "activation_extensor": "-",
-         "omega_cc_flexor": "rad/s", "omega_cc_extensor": "rad/s"}
-UNIT_NAMES = ("flexor", "extensor")
+from .fixed_step import RK4_STABILITY_LIMIT
+from .rates import activations_at, joint_muscle_torques, unit_stretch
 
 
 @njit(cache=True)
-def derived_quantities(time, states, pf, pe, af, ae, out):
-    """Fill ``out`` (n × 9) with T_F, T_E, T_net, a_F, a_E (floored), ω_cc,F, ω_cc,E,
-    τ_F, τ_E at each row of ``states`` = (θ, ω, θ_cc,F, θ_cc,E)."""
+def derived_quantities(time, states, seg, jnt, units, profiles, unit_out, joint_out):
+    """Per row of ``states`` = (q, q̇, θ_cc): fill ``unit_out`` (rows × U × 4) with each unit's
+    torque T (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s) and time constant τ (s);
+    and ``joint_out`` (rows × n × 2) with each joint's net muscle torque Σ d·T and end-stop
+    torque T_p (N·m)."""
+    n = seg.shape[0]
+    nu = units.shape[0]
+    levels = np.empty(nu)
     for i in range(time.shape[0]):
-        t, th, tf, te = time[i], states[i, 0], states[i, 2], states[i, 3]
-        s_f = flexor_stretch(th, tf)
-        s_e = extensor_stretch(th, te)
-        a_f = max(activation(t, af), ACTIVATION_FLOOR)
-        a_e = max(activation(t, ae), ACTIVATION_FLOOR)
-        torque_f = unit_torque(s_f, pf)
-        torque_e = unit_torque(s_e, pe)
-        w_f = unit_ce_velocity(s_f, tf, a_f, pf)
-        w_e = unit_ce_velocity(s_e, te, a_e, pe)
-        out[i, 0] = torque_f
-        out[i, 1] = torque_e
-        out[i, 2] = torque_f - torque_e
-        out[i, 3] = a_f
-        out[i, 4] = a_e
-        out[i, 5] = w_f
-        out[i, 6] = w_e
-        out[i, 7] = unit_time_constant(w_f, tf, a_f, pf)
-        out[i, 8] = unit_time_constant(w_e, te, a_e, pe)
+        q = states[i, :n]
+        theta_cc = states[i, 2 * n:]
+        activations_at(time[i], profiles, levels)
+        joint_muscle_torques(q, theta_cc, units, joint_out[i, :, 0])
+        for j in range(n):
+            joint_out[i, j, 1] = passive_torque(q[j], jnt[j])
+        for u in range(nu):
+            p = units[u]
+            stretch = unit_stretch(q, theta_cc[u], units, u)
+            level = max(levels[u], ACTIVATION_FLOOR)
+            w = unit_ce_velocity(stretch, theta_cc[u], level, p)
+            unit_out[i, u, 0] = unit_torque(stretch, p)
+            unit_out[i, u, 1] = level
+            unit_out[i, u, 2] = w
+            unit_out[i, u, 3] = unit_time_constant(w, theta_cc[u], level, p)
 
 
 @dataclass(frozen=True)
@@ -106,23 +98,24 @@ class SimulationResult:
 
     Attributes
     ----------
+    model : ChainModel
     time : ndarray, shape (n,)
         s.
-    states : ndarray, shape (n, 4)
-        (θ, ω, θ_cc,F, θ_cc,E), rad and rad/s.
+    states : ndarray, shape (n, 2·joints + units)
+        y = (q, q̇, θ_cc of every unit), rad and rad/s (names: ``model.state_names()``).
     method : str
-        ``monolithic``, ``partitioned[...]`` or ``reference``.
+        ``monolithic``, ``partitioned[...]``, ``imex``, ``reference`` or ``scipy:NAME``.
     step : float or None
         Fixed step, s (None for adaptive solvers).
     cost : RunCost
     stability : StabilityReport or None
-        None for implicit solvers.
+        None for adaptive solvers.
     status : str
-        ``"success"`` or ``"failed"``; ``message`` says why.
+        ``"success"`` or ``"failed"``; ``message`` says why (or warns).
     """
 
-    model: ElbowModel
-    packed: PackedModel = field(repr=False)
+    model: ChainModel
+    packed: PackedChain = field(repr=False)
     time: np.ndarray = field(repr=False)
     states: np.ndarray = field(repr=False)
     method: str
@@ -138,33 +131,69 @@ class SimulationResult:
         return self.status == "success"
 
     @property
+    def q(self) -> np.ndarray:
+        """Joint angles, rad, shape (n, joints)."""
+        return self.states[:, : self.model.n_joints]
+
+    @property
+    def qd(self) -> np.ndarray:
+        """Joint angular velocities, rad/s, shape (n, joints)."""
+        n = self.model.n_joints
+        return self.states[:, n: 2 * n]
+
+    @property
+    def theta_cc(self) -> np.ndarray:
+        """CE angles of the units, rad, shape (n, units)."""
+        return self.states[:, 2 * self.model.n_joints:]
+
+    @property
     def theta(self) -> np.ndarray:
-        """Elbow flexion angle, rad."""
+        """Angle of the first (for the elbow: the only) joint, rad."""
         return self.states[:, 0]
 
     @property
     def omega(self) -> np.ndarray:
-        """Elbow angular velocity, rad/s."""
-        return self.states[:, 1]
+        """Angular velocity of the first joint, rad/s."""
+        return self.states[:, self.model.n_joints]
 
-    def derived(self) -> np.ndarray:
-        """(n × 9) T_F, T_E, T_net, a_F, a_E, ω_cc,F, ω_cc,E, τ_F, τ_E (see COLUMNS)."""
-        out = np.empty((self.time.size, 9))
-        p = self.packed
-        derived_quantities(self.time, self.states, p.flexor, p.extensor, p.flexor_activation,
-                           p.extensor_activation, out)
-        return out
+    def angle(self, joint: str) -> np.ndarray:
+        """Angle of the joint named ``joint``, rad."""
+        return self.states[:, self.model.joint_index(joint)]
+
+    def _derived(self) -> tuple[np.ndarray, np.ndarray]:
+        n, nu = self.model.n_joints, self.model.n_units
+        unit_out = np.empty((self.time.size, nu, 4))
+        joint_out = np.empty((self.time.size, n, 2))
+        derived_quantities(self.time, self.states, *self.packed, unit_out, joint_out)
+        return unit_out, joint_out
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The output table as ordered columns (names and order of :data:`COLUMNS`)."""
-        d = self.derived()
-        arrays = [self.time, *self.states.T, *d[:, :7].T]
-        return dict(zip(COLUMNS, arrays, strict=True))
+        """The output table as ordered columns, SI units, angles in rad: ``time``; per joint
+        its coordinate (e.g. ``elbow_flexion``) and ``<coordinate>_speed``; per unit
+        ``theta_cc_<unit>``; per unit ``torque_<unit>``; per joint ``torque_net_<joint>``
+        (muscles, flexion positive) and ``torque_passive_<joint>`` (end stops); per unit
+        ``activation_<unit>`` (floored at 0.01) and ``omega_cc_<unit>`` (concentric
+        positive). See :func:`column_units`."""
+        unit_out, joint_out = self._derived()
+        m = self.model
+        cols = {"time": self.time}
+        for name, values in zip(m.state_names(), self.states.T, strict=True):
+            cols[name] = values
+        for u, unit in enumerate(m.units):
+            cols[f"torque_{unit.name}"] = unit_out[:, u, 0]
+        for j, joint in enumerate(m.joints):
+            cols[f"torque_net_{joint.name}"] = joint_out[:, j, 0]
+            cols[f"torque_passive_{joint.name}"] = joint_out[:, j, 1]
+        for u, unit in enumerate(m.units):
+            cols[f"activation_{unit.name}"] = unit_out[:, u, 1]
+        for u, unit in enumerate(m.units):
+            cols[f"omega_cc_{unit.name}"] = unit_out[:, u, 2]
+        return cols
 
-    def time_constants(self) -> tuple[np.ndarray, np.ndarray]:
-        """CE time constants τ_F, τ_E (s) over the motion; inf where the CE is clamped."""
-        d = self.derived()
-        return d[:, 7], d[:, 8]
+    def time_constants(self) -> dict[str, np.ndarray]:
+        """Each unit's CE time constant τ (s) over the motion; inf where the CE is clamped."""
+        unit_out, _ = self._derived()
+        return {unit.name: unit_out[:, u, 3] for u, unit in enumerate(self.model.units)}
 
     def to_dataframe(self):
         """The output table as a pandas DataFrame (needs pandas)."""
@@ -174,10 +203,11 @@ class SimulationResult:
             raise ImportError("to_dataframe needs pandas: pip install pandas") from exc
         return pd.DataFrame(self.columns())
 
-    def peak(self) -> tuple[float, float]:
-        """(peak angle in rad, its time in s)."""
-        i = int(np.argmax(self.theta))
-        return float(self.theta[i]), float(self.time[i])
+    def peak(self, joint: str | None = None) -> tuple[float, float]:
+        """(peak angle in rad, its time in s) of ``joint`` (default: the first joint)."""
+        angle = self.theta if joint is None else self.angle(joint)
+        i = int(np.argmax(angle))
+        return float(angle[i]), float(self.time[i])
 
     def save(self, path) -> None:
         """Write the table to ``.csv`` or OpenSim ``.sto``/``.mot`` (by extension), atomically,
@@ -185,3 +215,16 @@ class SimulationResult:
         from ..io.tables import save_result
 
         save_result(self, path)
+
+
+def column_units(name: str) -> str:
+    """SI unit of an output column of :meth:`SimulationResult.columns`."""
+    if name == "time":
+        return "s"
+    if name.startswith(("torque_",)):
+        return "N·m"
+    if name.startswith("activation_"):
+        return "-"
+    if name.startswith("omega_cc_") or name.endswith("_speed"):
+        return "rad/s"
+    return "rad"

@@ -9,12 +9,12 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK45, Radau
 
 from ..errors import ModelError, SimulationError, check_range
-from ..model.elbow import ElbowModel, default_model
-from ..model.torque_generator import RK4_STABILITY_LIMIT
+from ..model.chain import ChainModel, as_chain
+from ..model.elbow import default_model
 from . import fixed_step as fs
 from .coupling import IMEX, Coupling
-from .rates import elbow_rates
-from .result import UNIT_NAMES, RunCost, SimulationResult, StabilityReport
+from .rates import chain_derivative
+from .result import RunCost, SimulationResult, StabilityReport
 
 FIXED_STEP_METHODS = ("monolithic", "partitioned", "imex")
 #: SciPy solvers usable on the whole system (``scipy:NAME``); ``reference`` is Radau.
@@ -41,7 +41,7 @@ def step_count(duration: float, step: float, field: str = "step") -> int:
 
 
 def simulate(
-    model: ElbowModel | None = None,
+    model=None,
     method: str = "monolithic",
     step: float = DEFAULT_STEP,
     *,
@@ -57,6 +57,9 @@ def simulate(
 
     Parameters
     ----------
+    model : ChainModel or ElbowModel, optional
+        Any planar chain (:func:`torquesim.load_model`, :func:`torquesim.preset`); an
+        ElbowModel is simulated as its one-segment chain.
     method : {"monolithic", "partitioned", "reference"} or "scipy:NAME"
         ``monolithic``: classical RK4 on the whole state. ``partitioned``: each part with its
         own RK4, exchanging at step boundaries as ``coupling`` says (default zero-order hold).
@@ -68,18 +71,24 @@ def simulate(
         Overrides the model's duration, s.
     output_step : float
         Output grid of the adaptive solvers, s. Default 1 ms.
-    initial_state : array of 4, optional
-        (θ, ω, θ_cc,F, θ_cc,E) replacing the static-equilibrium start.
+    initial_state : array, optional
+        y(0) = (q, q̇, θ_cc of every unit) replacing the static-equilibrium start.
     check : bool
         Raise :class:`SimulationError` if the state goes non-finite or diverges (default);
         otherwise return the failed result with ``status == "failed"``.
     """
-    model = default_model() if model is None else model
+    model = as_chain(default_model() if model is None else model)
+    if not isinstance(method, str):
+        raise TypeError(f"method: expected a string such as 'monolithic', got "
+                        f"{type(method).__name__}")
+    if coupling is not None and not isinstance(coupling, Coupling):
+        raise TypeError(f"coupling: expected a torquesim.Coupling, got {type(coupling).__name__}")
     if duration is not None:
         model = model.replace(duration=check_range("duration", duration, 0.0, 600.0,
                                                    low_open=True, unit="s"))
     packed = model.pack()
-    y0 = model.initial_state().state if initial_state is None else _check_state(initial_state)
+    y0 = model.initial_state().state if initial_state is None else \
+        _check_state(initial_state, model)
     if method in FIXED_STEP_METHODS:
         if method == "imex":
             coupling = coupling or IMEX
@@ -102,16 +111,17 @@ def simulate(
     return result
 
 
-def _check_state(initial_state) -> np.ndarray:
+def _check_state(initial_state, model: ChainModel) -> np.ndarray:
     y0 = np.asarray(initial_state, dtype=float)
-    if y0.shape != (4,) or not np.all(np.isfinite(y0)):
-        raise ModelError("initial_state", "must be 4 finite numbers (θ, ω, θ_cc,F, θ_cc,E)")
+    if y0.shape != (model.state_size,) or not np.all(np.isfinite(y0)):
+        raise ModelError("initial_state", f"must be {model.state_size} finite numbers "
+                         f"({', '.join(model.state_names())})")
     return y0.copy()
 
 
 def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     n = step_count(model.duration, step)
-    out = np.empty((n + 1, 4))
+    out = np.empty((n + 1, model.state_size))
     stats = fs.new_stats()
     if method == "monolithic":
         kernel, extra, label = fs.rk4_monolithic, (), "monolithic"
@@ -127,10 +137,10 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     times = np.arange(done + 1) * step
     implicit = method == "partitioned" and coupling.implicit_muscles
     stability = StabilityReport(float(stats[fs.WORST_RATIO]), float(stats[fs.WORST_TIME]),
-                                UNIT_NAMES[int(stats[fs.WORST_UNIT])],
+                                model.units[int(stats[fs.WORST_UNIT])].name,
                                 step / (coupling.muscle_substeps if method == "partitioned"
                                         else 1),
-                                math.inf if implicit else RK4_STABILITY_LIMIT)
+                                math.inf if implicit else fs.RK4_STABILITY_LIMIT)
     status, message = "success", ""
     if stats[fs.STATUS] != fs.OK:
         what = "went non-finite" if stats[fs.STATUS] == fs.NON_FINITE else \
@@ -160,8 +170,7 @@ RAMP_RESOLUTION = 0.1
 
 def _resolution_warning(model, step) -> str:
     """A warning when the step is too coarse for the activation ramps, else ""."""
-    ramps = [r.duration for p in (model.flexor_activation, model.extensor_activation)
-             for r in p.ramps]
+    ramps = [r.duration for unit in model.units for r in unit.activation.ramps]
     if not ramps or step <= RAMP_RESOLUTION * min(ramps):
         return ""
     return (f"step {step * 1e3:g} ms is longer than a tenth of the shortest activation ramp "
@@ -179,12 +188,12 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
 
     def rhs(t, y):
         calls[0] += 1
-        return np.array(elbow_rates(t, y[0], y[1], y[2], y[3], *packed))
+        return chain_derivative(t, y, *packed)
 
-    states = np.full((grid.size, 4), np.nan)
+    states = np.full((grid.size, model.state_size), np.nan)
     states[0] = y0
     filled, steps, message = 1, 0, ""
-    elbow_rates(0.0, y0[0], y0[1], y0[2], y0[3], *packed)  # compile outside the timing
+    chain_derivative(0.0, y0, *packed)  # compile outside the timing
     start = _time.perf_counter()
     with np.errstate(all="ignore"):
         solver = SCIPY_SOLVERS[name](rhs, 0.0, y0, model.duration, rtol=rtol, atol=atol)

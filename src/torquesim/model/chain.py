@@ -1,0 +1,597 @@
+"""A planar open chain of rigid segments driven by torque generator units (docs/model.md §1).
+
+The chain hangs from a fixed base, proximal to distal. Joint k is the proximal joint of
+segment k; its angle q_k is relative (segment k against segment k − 1, or against the base),
+0 = straight/hanging in line with the previous segment, positive = flexion. The absolute angle
+of segment k from hanging straight down is
+
+    φ_k = base_angle + q_1 + … + q_k
+
+(``base_angle`` = 0: the first segment hangs straight down at q_1 = 0, as the elbow's forearm).
+
+Each torque generator unit acts on one joint with a direction d = +1 (flexor, pulls towards
+positive q) or −1 (extensor). The state used everywhere is
+
+    y = (q_1 … q_n, q̇_1 … q̇_n, θ_cc of every unit)
+
+in rad and rad/s; the units are rows of one array, in the order they are listed.
+The elbow of MODEL.md is the one-segment chain with one flexor and one extensor.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..errors import ModelError, check_range
+from .activation import ActivationProfile
+from .body import (
+    ENDSTOP_HIGH,
+    ENDSTOP_LOW,
+    ENDSTOP_SCALE,
+    ENDSTOP_TORQUE,
+    ZERO_OFFSET,
+    passive_torque,
+)
+from .torque_generator import ACTIVATION_FLOOR, H_ISOMETRIC, TorqueGeneratorUnit, torque_angle
+
+MAX_SEGMENTS = 6
+#: Columns of the packed segment array (see :meth:`ChainModel.pack`).
+SEG_INERTIA, SEG_MOMENT, SEG_LENGTH, SEG_GRAVITY = range(4)
+SEGMENT_ARRAY_SIZE = 4
+JOINT_ARRAY_SIZE = 5  # end stops and zero offset, indices of torquesim.model.body
+#: Extra columns of the packed unit rows (after the TorqueGeneratorUnit array).
+UNIT_JOINT, UNIT_DIRECTION = 18, 19
+UNIT_ROW_SIZE = 20
+FLEXOR, EXTENSOR = 1, -1
+
+
+def _check_name(field_name: str, value) -> str:
+    if not isinstance(value, str) or not value or not all(c.isalnum() or c == "_"
+                                                          for c in value):
+        raise ModelError(field_name, f"{value!r}: allowed a non-empty name of letters, digits "
+                         "and _ (it names output columns)")
+    return value
+
+
+@dataclass(frozen=True)
+class PointLoad:
+    """A mass carried rigidly by a segment on its axis (a dumbbell, an ankle weight).
+
+    Attributes
+    ----------
+    name : str
+    mass : float
+        kg. Bounds [0, inf).
+    distance : float
+        From the segment's proximal joint along the segment axis, m. Bounds [0, inf).
+    inertia : float
+        Its own moment of inertia about its own centre, kg·m². Default 0. Bounds [0, inf).
+    """
+
+    name: str
+    mass: float
+    distance: float
+    inertia: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_name("name", self.name)
+        check_range("mass", self.mass, 0.0, unit="kg")
+        check_range("distance", self.distance, 0.0, unit="m")
+        check_range("inertia", self.inertia, 0.0, unit="kg·m^2")
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A rigid segment, with the point loads it carries.
+
+    Attributes
+    ----------
+    name : str
+    mass : float
+        kg. Bounds (0, inf).
+    com_distance : float
+        Proximal joint → centre of mass, along the segment axis, m. Bounds [0, inf).
+    inertia_about_joint : float
+        Moment of inertia about the proximal joint axis (not about the centre of mass), loads
+        excluded, kg·m². Bounds (0, inf); at least mass·com_distance² (parallel axes).
+    length : float
+        Proximal joint → next joint, m (unused for the last segment). Bounds [0, inf).
+    loads : tuple of PointLoad
+    """
+
+    name: str
+    mass: float
+    com_distance: float
+    inertia_about_joint: float
+    length: float = 0.0
+    loads: tuple[PointLoad, ...] = ()
+
+    def __post_init__(self) -> None:
+        _check_name("name", self.name)
+        m = check_range("mass", self.mass, 0.0, low_open=True, unit="kg")
+        c = check_range("com_distance", self.com_distance, 0.0, unit="m")
+        inertia = check_range("inertia_about_joint", self.inertia_about_joint, 0.0,
+                              low_open=True, unit="kg·m^2")
+        check_range("length", self.length, 0.0, unit="m")
+        if inertia < m * c * c * (1.0 - 1e-12):
+            raise ModelError("inertia_about_joint", f"{inertia!r} is below mass·com_distance² "
+                             f"= {m * c * c:.6g}; allowed ≥ that (parallel-axis theorem)")
+        object.__setattr__(self, "loads", tuple(self.loads))
+        names = set()
+        for i, load in enumerate(self.loads):
+            if not isinstance(load, PointLoad):
+                raise ModelError(f"loads[{i}]", "must be a PointLoad(name, mass, distance, "
+                                 "inertia)")
+            if load.name in names:
+                raise ModelError(f"loads[{i}].name", f"{load.name!r} is used twice; allowed: "
+                                 "unique names")
+            names.add(load.name)
+
+    @property
+    def total_mass(self) -> float:
+        """Segment and loads, kg."""
+        return self.mass + sum(load.mass for load in self.loads)
+
+    @property
+    def first_moment(self) -> float:
+        """m·c + Σ m_load·d_load about the proximal joint, kg·m."""
+        out = self.mass * self.com_distance
+        for load in self.loads:
+            out += load.mass * load.distance
+        return out
+
+    @property
+    def inertia_with_loads(self) -> float:
+        """Moment of inertia about the proximal joint, loads included, kg·m²."""
+        out = self.inertia_about_joint
+        for load in self.loads:
+            out = out + load.mass * load.distance**2 + load.inertia
+        return out
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A hinge joint and its passive end stops (MODEL.md §1 form).
+
+        T_p(q) = k_p·[exp((q_lo − q)/s_p) − exp((q − q_hi)/s_p)]
+
+    Attributes
+    ----------
+    name : str
+    initial_angle : float
+        q at t = 0, rad (0 = straight in line with the previous segment, positive = flexion).
+        Bounds [-π, π].
+    endstop_torque : float
+        k_p, N·m. Default 1.0. Bounds [0, inf); 0 = no end stops.
+    endstop_angle_scale : float
+        s_p, rad. Default 0.05. Bounds (0, inf).
+    endstop_lower_angle, endstop_upper_angle : float
+        q_lo < q_hi, rad. Defaults 0 and 2.618 (150°). Bounds [-π, 2π].
+    coordinate : str
+        Name of the angle's output column, as an OpenSim coordinate. Default
+        ``<name>_flexion``.
+    """
+
+    name: str
+    initial_angle: float = 0.0
+    endstop_torque: float = 1.0
+    endstop_angle_scale: float = 0.05
+    endstop_lower_angle: float = 0.0
+    endstop_upper_angle: float = 2.618
+    coordinate: str = ""
+
+    def __post_init__(self) -> None:
+        _check_name("name", self.name)
+        check_range("initial_angle", self.initial_angle, -math.pi, math.pi, unit="rad")
+        check_range("endstop_torque", self.endstop_torque, 0.0, unit="N·m")
+        check_range("endstop_angle_scale", self.endstop_angle_scale, 0.0, low_open=True,
+                    unit="rad")
+        lo = check_range("endstop_lower_angle", self.endstop_lower_angle, -math.pi,
+                         2 * math.pi, unit="rad")
+        hi = check_range("endstop_upper_angle", self.endstop_upper_angle, -math.pi,
+                         2 * math.pi, unit="rad")
+        if hi <= lo:
+            raise ModelError("endstop_upper_angle",
+                             f"{hi!r} must exceed endstop_lower_angle = {lo!r} rad")
+        if not self.coordinate:
+            object.__setattr__(self, "coordinate", f"{self.name}_flexion")
+        _check_name("coordinate", self.coordinate)
+
+    def endstop_array(self) -> np.ndarray:
+        """[k_p, s_p, q_lo, q_hi] in the layout of :func:`torquesim.model.body.passive_torque`."""
+        p = np.zeros(ZERO_OFFSET)
+        p[ENDSTOP_TORQUE] = self.endstop_torque
+        p[ENDSTOP_SCALE] = self.endstop_angle_scale
+        p[ENDSTOP_LOW] = self.endstop_lower_angle
+        p[ENDSTOP_HIGH] = self.endstop_upper_angle
+        return p
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One torque generator unit placed on a joint.
+
+    Attributes
+    ----------
+    name : str
+        Unique in the model (names output columns, e.g. ``torque_<name>``).
+    joint : str
+        Name of the joint it acts on.
+    direction : int
+        +1 flexor (its SE stretch is θ_cc − q, it pulls towards flexion), −1 extensor
+        (stretch q − θ_cc).
+    parameters : TorqueGeneratorUnit
+    activation : ActivationProfile
+        ``initial_level=None`` ("equilibrium"): the level is solved so the chain starts at
+        rest (see :meth:`ChainModel.initial_state`).
+    """
+
+    name: str
+    joint: str
+    direction: int
+    parameters: TorqueGeneratorUnit
+    activation: ActivationProfile
+
+    def __post_init__(self) -> None:
+        _check_name("name", self.name)
+        _check_name("joint", self.joint)
+        if isinstance(self.direction, bool) or self.direction not in (FLEXOR, EXTENSOR):
+            raise ModelError("direction", f"{self.direction!r}; allowed +1 (flexor) or -1 "
+                             "(extensor)")
+        object.__setattr__(self, "direction", int(self.direction))
+        if not isinstance(self.parameters, TorqueGeneratorUnit):
+            raise ModelError("parameters", "must be a TorqueGeneratorUnit")
+        if not isinstance(self.activation, ActivationProfile):
+            raise ModelError("activation", "must be an ActivationProfile")
+
+
+class PackedChain(NamedTuple):
+    """Plain float arrays handed to the compiled solvers.
+
+    segments : (n, 4)  A_k, B_k, L_k, g·B_k (see :meth:`ChainModel.pack`)
+    joints : (n, 5)    end stops and zero offset
+    units : (U, 20)    TorqueGeneratorUnit array, then joint index and direction
+    activations : (U, P)  packed activation profiles [a_0, n, (t_on, r, level) × n]
+    """
+
+    segments: np.ndarray
+    joints: np.ndarray
+    units: np.ndarray
+    activations: np.ndarray
+
+
+class ChainStart(NamedTuple):
+    """Static equilibrium at rest (docs/model.md §4)."""
+
+    state: np.ndarray  #: y(0), rad and rad/s
+    levels: np.ndarray  #: initial activation of every unit used in the run
+    torques: np.ndarray  #: unit torques at t = 0, N·m
+
+
+@dataclass(frozen=True)
+class ChainModel:
+    """A complete simulation model: a planar chain, its units, and the duration.
+
+    Attributes
+    ----------
+    name : str
+    segments : tuple of Segment
+        1 to 6, proximal to distal.
+    joints : tuple of Joint
+        One per segment: joint k is the proximal joint of segment k.
+    units : tuple of Unit
+        At least one per joint.
+    gravity : float
+        g, m/s², acting in the plane towards "hanging". Default 9.81. Bounds [0, inf).
+    base_angle : float
+        Absolute angle of the first joint's zero direction from hanging straight down, rad,
+        positive in its flexion direction. Default 0 (the elbow: forearm hanging at q = 0).
+        −π/2 for a seated knee (thigh horizontal, straight knee = shank horizontal).
+        Bounds [-π, π].
+    duration : float
+        Simulated time, s. Default 3.0. Bounds (0, 600].
+    """
+
+    name: str
+    segments: tuple[Segment, ...]
+    joints: tuple[Joint, ...]
+    units: tuple[Unit, ...]
+    gravity: float = 9.81
+    base_angle: float = 0.0
+    duration: float = 3.0
+
+    def __post_init__(self) -> None:
+        _check_name("name", self.name.replace("-", "_"))
+        for key in ("segments", "joints", "units"):
+            object.__setattr__(self, key, tuple(getattr(self, key)))
+        check_range("gravity", self.gravity, 0.0, unit="m/s^2")
+        check_range("base_angle", self.base_angle, -math.pi, math.pi, unit="rad")
+        check_range("duration", self.duration, 0.0, 600.0, low_open=True, unit="s")
+        n = len(self.segments)
+        if not 1 <= n <= MAX_SEGMENTS:
+            raise ModelError("segments", f"{n} segments; allowed 1 to {MAX_SEGMENTS}")
+        if len(self.joints) != n:
+            raise ModelError("joints", f"{len(self.joints)} joints for {n} segments; allowed: "
+                             "one joint per segment (joint k moves segment k)")
+        for key, kind in (("segments", Segment), ("joints", Joint), ("units", Unit)):
+            seen = set()
+            for i, item in enumerate(getattr(self, key)):
+                if not isinstance(item, kind):
+                    raise ModelError(f"{key}[{i}]", f"must be a {kind.__name__}")
+                if item.name in seen:
+                    raise ModelError(f"{key}[{i}].name", f"{item.name!r} is used twice; "
+                                     "allowed: unique names")
+                seen.add(item.name)
+        coordinates = [j.coordinate for j in self.joints]
+        if len(set(coordinates)) != n:
+            raise ModelError("joints.coordinate", "two joints share a coordinate name; "
+                             "allowed: unique names")
+        joint_names = [j.name for j in self.joints]
+        for i, unit in enumerate(self.units):
+            if unit.joint not in joint_names:
+                raise ModelError(f"units[{i}].joint", f"{unit.joint!r} is not a joint; "
+                                 f"allowed: {', '.join(joint_names)}")
+        for joint in self.joints:
+            if not any(u.joint == joint.name for u in self.units):
+                raise ModelError(f"joints.{joint.name}", "has no torque generator unit; "
+                                 "allowed: at least one unit per joint")
+        self.initial_state()  # raises if the start cannot be held
+
+    # -- structure ----------------------------------------------------------------------
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def n_units(self) -> int:
+        return len(self.units)
+
+    @property
+    def state_size(self) -> int:
+        return 2 * self.n_joints + self.n_units
+
+    def joint_index(self, name: str) -> int:
+        return [j.name for j in self.joints].index(name)
+
+    def unit_index(self, name: str) -> int:
+        return [u.name for u in self.units].index(name)
+
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the entries of y: coordinates, their speeds, each unit's CE angle."""
+        return (*(j.coordinate for j in self.joints),
+                *(f"{j.coordinate}_speed" for j in self.joints),
+                *(f"theta_cc_{u.name}" for u in self.units))
+
+    def replace(self, **changes) -> ChainModel:
+        """A copy with some fields changed (validated again)."""
+        return replace(self, **changes)
+
+    def replace_unit(self, name: str, **changes) -> ChainModel:
+        """A copy with unit ``name``'s fields (``parameters``, ``activation``, …) changed."""
+        i = self.unit_index(name)
+        units = list(self.units)
+        units[i] = replace(units[i], **changes)
+        return self.replace(units=tuple(units))
+
+    def replace_joint(self, name: str, **changes) -> ChainModel:
+        i = self.joint_index(name)
+        joints = list(self.joints)
+        joints[i] = replace(joints[i], **changes)
+        return self.replace(joints=tuple(joints))
+
+    def replace_segment(self, name: str, **changes) -> ChainModel:
+        i = [s.name for s in self.segments].index(name)
+        segments = list(self.segments)
+        segments[i] = replace(segments[i], **changes)
+        return self.replace(segments=tuple(segments))
+
+    # -- packing ------------------------------------------------------------------------
+    def segment_array(self) -> np.ndarray:
+        """Per segment k (proximal joint k), with M_k = total mass of segments k+1…n:
+
+        A_k = J_k + L_k²·M_k     inertia about joint k of segment k and all it carries, kg·m²
+        B_k = S_k + L_k·M_k      first moment about joint k of segment k onwards, kg·m
+        L_k                      length to joint k + 1, m
+        g·B_k                    gravity moment coefficient, N·m
+
+        (J_k, S_k: the segment's own inertia about its joint and first moment, loads
+        included.) The mass matrix in absolute angles is M_kk = A_k and
+        M_jk = L_j·B_k·cos(φ_j − φ_k) for j < k (docs/model.md §1).
+        """
+        n = self.n_joints
+        out = np.zeros((n, SEGMENT_ARRAY_SIZE))
+        distal = 0.0
+        for k in range(n - 1, -1, -1):
+            seg = self.segments[k]
+            length = seg.length if k < n - 1 else 0.0
+            out[k, SEG_INERTIA] = seg.inertia_with_loads + length**2 * distal
+            out[k, SEG_MOMENT] = seg.first_moment + length * distal
+            out[k, SEG_LENGTH] = length
+            out[k, SEG_GRAVITY] = self.gravity * out[k, SEG_MOMENT]
+            distal += seg.total_mass
+        return out
+
+    def joint_array(self) -> np.ndarray:
+        """(n, 5): each joint's end stops, and the offset added to q_k in φ_k (the base angle
+        for the first joint, 0 for the others)."""
+        out = np.zeros((self.n_joints, JOINT_ARRAY_SIZE))
+        for k, joint in enumerate(self.joints):
+            out[k, :ZERO_OFFSET] = joint.endstop_array()
+        out[0, ZERO_OFFSET] = self.base_angle
+        return out
+
+    def unit_array(self) -> np.ndarray:
+        out = np.zeros((self.n_units, UNIT_ROW_SIZE))
+        for i, unit in enumerate(self.units):
+            out[i, :UNIT_JOINT] = unit.parameters.to_array()
+            out[i, UNIT_JOINT] = self.joint_index(unit.joint)
+            out[i, UNIT_DIRECTION] = unit.direction
+        return out
+
+    def pack(self, levels=None) -> PackedChain:
+        """The arrays the compiled solvers read; ``levels`` (default: from the static
+        equilibrium) resolve the "equilibrium" initial activation levels."""
+        levels = self.initial_state().levels if levels is None else levels
+        return PackedChain(self.segment_array(), self.joint_array(), self.unit_array(),
+                           pack_activations([u.activation for u in self.units], levels))
+
+    # -- the start ------------------------------------------------------------------------
+    def absolute_angles(self, q) -> np.ndarray:
+        """φ_k = base_angle + q_1 + … + q_k, rad."""
+        return self.base_angle + np.cumsum(np.asarray(q, dtype=float))
+
+    def gravity_joint_torques(self, q) -> np.ndarray:
+        """Torque gravity exerts at each joint, N·m (flexion positive):
+        −Σ_{k ≥ j} g·B_k·sin φ_k."""
+        phi = self.absolute_angles(q)
+        g_moment = self.segment_array()[:, SEG_GRAVITY]
+        per_segment = g_moment * np.sin(phi)
+        return -np.cumsum(per_segment[::-1])[::-1]
+
+    def initial_state(self) -> ChainStart:
+        """Static equilibrium at rest at the joints' initial angles (docs/model.md §4).
+
+        At joint j the units must cancel the load τ_load = Σ_{k≥j} g·B_k·sin φ_k − T_p(q_j)
+        (gravity and end stops; flexion positive).
+
+        - A unit with a given initial level a (an antagonist) is isometric at its rest SE
+          stretch: k·s = max(a, 0.01)·T_θ(q + d·s)·h(0).
+        - The torque still needed, τ = τ_load − Σ d·T (given-level units), is carried by the
+          units with ``initial_level = "equilibrium"`` whose direction is sign(τ) (the
+          agonists), at one common level; "equilibrium" units of the other direction rest at
+          activation 0. With one agonist the level is closed-form: s = |τ|/k,
+          a = |τ|/(h(0)·T_θ(q + d·s)) (MODEL.md §3).
+        - A joint with no "equilibrium" unit: the one unit of direction sign(τ_load) carries
+          τ (its stretch solved as above) at its own given level, so its CE starts away from
+          isometric (MODEL.md's elbow with a given flexor level); with several such units
+          each is isometric at its own level and the joint need not start at rest.
+
+        Raises :class:`ModelError` naming the joint when no level in [0, 1] holds it.
+        """
+        n, nu = self.n_joints, self.n_units
+        q0 = np.array([float(j.initial_angle) for j in self.joints])
+        segments = self.segment_array()
+        gravity = self.gravity_joint_torques(q0) if n > 1 else None
+        theta_cc = np.zeros(nu)
+        levels = np.zeros(nu)
+        torques = np.zeros(nu)
+        for j, joint in enumerate(self.joints):
+            q = q0[j]
+            passive = passive_torque(q, joint.endstop_array())
+            if gravity is None:  # one segment: the elbow's own arithmetic (MODEL.md §3)
+                needed = segments[0, SEG_GRAVITY] * math.sin(self.base_angle + q) - passive
+            else:
+                needed = -gravity[j] - passive
+            mine = [i for i, u in enumerate(self.units) if u.joint == joint.name]
+            pending = [i for i in mine if self.units[i].activation.initial_level is None]
+            carrier = None
+            if not pending:
+                side = FLEXOR if needed > 0.0 else EXTENSOR
+                same = [i for i in mine if self.units[i].direction == side]
+                carrier = same[0] if len(same) == 1 and needed != 0.0 else None
+            for i in mine:
+                unit = self.units[i]
+                theta_cc[i] = q
+                if i in pending or i == carrier:
+                    continue
+                levels[i] = float(unit.activation.initial_level)
+                s = _rest_stretch(unit, q, levels[i])
+                torques[i] = unit.parameters.se_stiffness * s
+                theta_cc[i] = q + unit.direction * s
+                needed -= unit.direction * torques[i]
+            # `needed`: what the agonists must add at rest (flexion positive).
+            if needed == 0.0 or (not pending and carrier is None):
+                continue
+            direction = FLEXOR if needed > 0.0 else EXTENSOR
+            side = "flexor" if direction == FLEXOR else "extensor"
+            if carrier is not None:
+                agonists = [carrier] if self.units[carrier].direction == direction else []
+            else:
+                agonists = [i for i in pending if self.units[i].direction == direction]
+            if not agonists:
+                raise ModelError(
+                    f"joints.{joint.name}.initial_angle",
+                    f"{joint.name} cannot rest at {math.degrees(q):.2f}°: it needs "
+                    f"{abs(needed):.3g} N·m of {side} torque (the "
+                    f"{'extensor' if side == 'flexor' else 'flexor'} would have to push) and no "
+                    f"{side} unit there can supply it at initial_level = \"equilibrium\"; "
+                    "allowed: a start the units can hold (change the angle or the given levels)")
+            level = _agonist_level(self.units, agonists, q, abs(needed))
+            if carrier is None and level > 1.0:
+                raise ModelError(
+                    f"joints.{joint.name}.initial_angle",
+                    f"holding {joint.name} at {math.degrees(q):.2f}° needs activation "
+                    f"{level:.3f} > 1 of {', '.join(self.units[i].name for i in agonists)}; "
+                    "allowed: a start the units can hold (activation ≤ 1)")
+            for i in agonists:
+                unit = self.units[i]
+                if len(agonists) == 1:
+                    s = abs(needed) / unit.parameters.se_stiffness
+                else:
+                    s = _rest_stretch(unit, q, level)
+                levels[i] = level if carrier is None else float(unit.activation.initial_level)
+                torques[i] = unit.parameters.se_stiffness * s
+                theta_cc[i] = q + unit.direction * s
+        state = np.concatenate([q0, np.zeros(n), theta_cc])
+        return ChainStart(state, levels, torques)
+
+
+def _rest_stretch(unit: Unit, q: float, level: float) -> float:
+    """SE stretch s ≥ 0 of an isometric unit at activation ``level``:
+    k·s = max(a, 0.01)·T_θ(q + d·s)·h(0)."""
+    p = unit.parameters.to_array()
+    a = max(level, ACTIVATION_FLOOR)
+    k, d = p[10], unit.direction
+
+    def balance(s: float) -> float:
+        return k * s - a * torque_angle(q + d * s, p) * p[H_ISOMETRIC]
+
+    s_max = a * p[H_ISOMETRIC] / k  # T_θ ≤ 1 bounds the stretch
+    return brentq(balance, 0.0, s_max * (1 + 1e-12) + 1e-300, xtol=1e-16, rtol=1e-15)
+
+
+def _agonist_level(units, agonists, q: float, needed: float) -> float:
+    """Common activation of the ``agonists`` whose summed torque is ``needed`` (N·m, > 0)."""
+    if len(agonists) == 1:
+        unit = units[agonists[0]]
+        p = unit.parameters.to_array()
+        s = needed / unit.parameters.se_stiffness
+        return needed / (p[H_ISOMETRIC] * torque_angle(q + unit.direction * s, p))
+
+    def surplus(a: float) -> float:
+        return sum(units[i].parameters.se_stiffness * _rest_stretch(units[i], q, a)
+                   for i in agonists) - needed
+
+    if surplus(1.0) < 0.0:
+        return 1.0 + (-surplus(1.0)) / needed  # > 1: reported as "cannot hold"
+    if surplus(ACTIVATION_FLOOR) >= 0.0:
+        return ACTIVATION_FLOOR
+    return brentq(surplus, ACTIVATION_FLOOR, 1.0, xtol=1e-15, rtol=1e-15)
+
+
+def pack_activations(profiles, levels) -> np.ndarray:
+    """(U, P) array: row u is profile u packed as [a_0, n, (t_on, r, level) × n], its
+    "equilibrium" initial level taken from ``levels[u]``; shorter rows are zero-padded."""
+    rows = [p.to_array(float(level)) for p, level in zip(profiles, levels, strict=True)]
+    width = max(r.size for r in rows)
+    out = np.zeros((len(rows), width))
+    for i, r in enumerate(rows):
+        out[i, : r.size] = r
+    return out
+
+
+def as_chain(model) -> ChainModel:
+    """A :class:`ChainModel` from a chain or an :class:`~torquesim.model.elbow.ElbowModel`;
+    anything else is a TypeError naming the argument."""
+    if isinstance(model, ChainModel):
+        return model
+    to_chain = getattr(model, "to_chain", None)
+    if to_chain is None:
+        raise TypeError(f"model: expected a ChainModel or ElbowModel, got "
+                        f"{type(model).__name__} (load a file with torquesim.load_model)")
+    return to_chain()

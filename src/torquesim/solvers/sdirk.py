@@ -1,0 +1,88 @@
+"""The implicit stage equation of a unit's CE, for the SDIRK2 muscle solver (IMEX).
+
+A diagonally implicit Runge-Kutta stage asks for the CE velocity w at the stage state it
+produces itself: θ_cc = θ_cc,known + d·γh·w, s = s_known + γh·w. This module solves that
+scalar equation; the CE equation itself lives in :mod:`torquesim.model.torque_generator`.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from ..model.torque_generator import (
+    ACTIVATION_FLOOR,
+    CE_DAMPING,
+    K_SE,
+    OMEGA_MAX,
+    ce_torque_velocity,
+    ce_torque_velocity_slope,
+    torque_angle,
+    torque_angle_slope,
+)
+
+
+@njit(cache=True, error_model="numpy")
+def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity_activation, p):
+    """Residual G(w) and dG/dw of the implicit CE equation (see unit_implicit_ce_velocity)."""
+    x = theta_cc_known + sign * gamma_h * w
+    t_theta = torque_angle(x, p)
+    t_theta_slope = torque_angle_slope(x, p) * sign * gamma_h  # d T_θ / d w
+    stretch = stretch_known + gamma_h * w
+    h_value = ce_torque_velocity(w, p)
+    g = capacity_activation * t_theta * h_value - p[CE_DAMPING] * w
+    slope = capacity_activation * (t_theta_slope * h_value
+                                   + t_theta * ce_torque_velocity_slope(w, p)) - p[CE_DAMPING]
+    if stretch > 0.0:
+        g -= p[K_SE] * stretch
+        slope -= p[K_SE] * gamma_h
+    return g, slope
+
+
+@njit(cache=True, error_model="numpy")
+def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, activation, p,
+                              guess):
+    """CE velocity w (rad/s) of one implicit (diagonally implicit Runge-Kutta) stage.
+
+    The stage state is θ_cc = θ_cc,known + sign·γh·w (sign d: +1 flexor, −1 extensor, whose CE
+    angle moves against its shortening velocity) and its SE stretch s = s_known + γh·w; w must
+    satisfy the CE equation of MODEL.md §2.5 at that state:
+
+        G(w) = max(a, 0.01)·T_θ(θ_cc)·h(w) − β·w − k·max(s, 0) = 0,    w ∈ [−ω_max, ω_max]
+
+    (β = ``ce_damping``, 0 in the abstract's model).
+
+    G(ω_max) ≤ 0 always; if G(−ω_max) ≤ 0 the eccentric clamp holds and w = −ω_max, as in the
+    explicit equation. Otherwise G has one root (h decreasing, the SE term non-increasing),
+    found by Newton's method from ``guess``, safeguarded by bisection on the bracket; a Newton
+    step that would cross the kink of T_ω at w = 0 is stopped at w = 0, so every later step
+    stays on one smooth branch. Returns (w, residual evaluations).
+    """
+    wmax = p[OMEGA_MAX]
+    cap_a = max(activation, ACTIVATION_FLOOR)
+    g_low, _ = _implicit_residual(-wmax, stretch_known, theta_cc_known, sign, gamma_h, cap_a, p)
+    evaluations = 1
+    if g_low <= 0.0:
+        return -wmax, evaluations
+    lo, hi = -wmax, wmax
+    w = min(max(guess, -wmax), wmax)
+    for _ in range(100):
+        g, slope = _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, cap_a, p)
+        evaluations += 1
+        if g == 0.0:
+            return w, evaluations
+        if g > 0.0:
+            lo = w
+        else:
+            hi = w
+        if hi - lo <= 1e-14 * (1.0 + abs(w)):
+            return w, evaluations
+        w_new = w - g / slope if slope < 0.0 else 0.5 * (lo + hi)
+        if not (lo < w_new < hi):
+            w_new = 0.5 * (lo + hi)
+        if (w_new > 0.0) != (w > 0.0) and w != 0.0 and lo < 0.0 < hi:
+            w = 0.0  # evaluate at the kink next: it splits the bracket into smooth branches
+            continue
+        if abs(w_new - w) <= 1e-12 * (1.0 + abs(w)):
+            return w_new, evaluations
+        w = w_new
+    return w, evaluations
