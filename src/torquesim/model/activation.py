@@ -105,14 +105,14 @@ def quintic_ramp(s):
 
 
 @njit(cache=True, error_model="numpy")
-def activation(t, profile):
+def activation(t, profile, o=0):
     """a(t) of a packed profile ``[a_0, n, (t_on, r, level) × n]`` (see module docstring)."""
-    level = profile[0]
-    n = int(profile[1])
+    level = profile[o + 0]
+    n = int(profile[o + 1])
     for i in range(n):
-        t_on = profile[2 + 3 * i]
-        duration = profile[3 + 3 * i]
-        target = profile[4 + 3 * i]
+        t_on = profile[o + 2 + 3 * i]
+        duration = profile[o + 3 + 3 * i]
+        target = profile[o + 4 + 3 * i]
         if t <= t_on:
             return level
         if t < t_on + duration:

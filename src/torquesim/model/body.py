@@ -118,29 +118,47 @@ class BodyParameters:
 
 
 @njit(cache=True, error_model="numpy")
-def passive_torque(theta, b):
+def passive_torque(theta, b, o=0):
     """End-stop torque T_p(θ) = k_p·[exp((θ_lo − θ)/s_p) − exp((θ − θ_hi)/s_p)], N·m."""
-    s = b[ENDSTOP_SCALE]
-    return b[ENDSTOP_TORQUE] * (math.exp((b[ENDSTOP_LOW] - theta) / s)
-                                - math.exp((theta - b[ENDSTOP_HIGH]) / s))
+    s = b[o + ENDSTOP_SCALE]
+    return b[o + ENDSTOP_TORQUE] * (math.exp((b[o + ENDSTOP_LOW] - theta) / s)
+                                - math.exp((theta - b[o + ENDSTOP_HIGH]) / s))
 
 
 @njit(cache=True, error_model="numpy")
-def passive_energy(theta, b):
+def passive_energy(theta, b, o=0):
     """Potential V_p(θ) of the end stops, J, with −dV_p/dθ = T_p(θ)."""
-    s = b[ENDSTOP_SCALE]
-    return b[ENDSTOP_TORQUE] * s * (math.exp((b[ENDSTOP_LOW] - theta) / s)
-                                    + math.exp((theta - b[ENDSTOP_HIGH]) / s))
+    s = b[o + ENDSTOP_SCALE]
+    return b[o + ENDSTOP_TORQUE] * s * (math.exp((b[o + ENDSTOP_LOW] - theta) / s)
+                                    + math.exp((theta - b[o + ENDSTOP_HIGH]) / s))
 
 
-#: Column of the packed joint array holding the angle offset added to q_k in φ_k (the chain's
-#: base angle for the first joint, 0 for the others).
+#: Column of a packed joint row holding the angle offset added to q_k in φ_k (the chain's
+#: base angle for the first joint, 0 for the others), and the joint row size.
 ZERO_OFFSET = 4
+JOINT_ROW_SIZE = 5
+#: Columns of the packed segment array (torquesim.model.chain.ChainModel.segment_array).
+SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN = range(4)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def joint_accelerations(q, qd, muscle_torque, seg, jnt, work, qdd):
-    """q̈ (rad/s², into ``qdd``) of a planar open chain (docs/model.md §1):
+def single_segment_acceleration(q, muscle_torque, seg, joints):
+    """q̈ of a one-segment chain, rad/s²: M is the scalar A_1, so :func:`joint_accelerations`
+    reduces to one division, MODEL.md's
+
+        I_E·dω/dt = T_net + T_p(θ) − G·sin θ      (abstract Eq. 1 with end stops)
+
+    with the same arithmetic as the general solve (tested). Loop-free, so the solvers inline
+    it into their step loops at no cost."""
+    return (muscle_torque + passive_torque(q, joints, 0)
+            - seg[0, SEG_GRAVITY_COLUMN] * math.sin(joints[ZERO_OFFSET] + q)) \
+        / seg[0, SEG_INERTIA_COLUMN]
+
+
+@njit(cache=True, error_model="numpy")
+def joint_accelerations(y, n, muscle_torque, seg, joints, work):
+    """q̈ of a planar open chain (docs/model.md §1), rad/s², into work[n²:n²+n]; q = y[:n],
+    q̇ = y[n:2n]:
 
         M(φ)·φ̈ + c(φ, φ̇) + g(φ) = Q,    φ_k = Σ_{i≤k}(offset_i + q_i)
 
@@ -148,62 +166,58 @@ def joint_accelerations(q, qd, muscle_torque, seg, jnt, work, qdd):
     c_j = Σ_{k≠j} D_jk·sin(φ_j − φ_k)·φ̇_k² (D_jk = L_min(j,k)·B_max(j,k)),
     g_j = g·B_j·sin φ_j, and the generalized forces Q_j = τ_j − τ_{j+1} of the joint torques
     τ_j = muscle_torque_j + T_p(q_j) (end stops); then q̈_k = φ̈_k − φ̈_{k−1}. Solved by an
-    LDLᵀ factorization of M (symmetric positive definite). For one segment this is
-    MODEL.md's I_E·dω/dt = T_net + T_p(θ) − G·sin θ, with the same arithmetic.
+    LDLᵀ factorization of M (symmetric positive definite).
 
-    ``seg``: (n, 4) segment array of :meth:`ChainModel.segment_array`; ``jnt``: (n, 5)
-    end stops and zero offset; ``work``: (n, n + 4) scratch.
+    ``seg``: (n, 4) segment array of :meth:`ChainModel.segment_array`; ``joints``: the flat
+    joint rows (end stops, zero offset); ``work``: flat scratch of n² + 3n, which holds q̈ at
+    the end (no output array: the solvers' step loops pay for every array argument).
     """
-    n = q.shape[0]
+    rhs = n * n
+    angle = rhs + n
+    speed = angle + n
     phi = 0.0
     phid = 0.0
-    rhs = n
-    angle = n + 1
-    speed = n + 2
-    passive = n + 3
     for k in range(n):
-        phi += jnt[k, ZERO_OFFSET] + q[k]
-        phid += qd[k]
-        work[k, angle] = phi
-        work[k, speed] = phid
-        work[k, passive] = muscle_torque[k] + passive_torque(q[k], jnt[k])
+        o = k * JOINT_ROW_SIZE
+        phi += joints[o + ZERO_OFFSET] + y[k]
+        phid += y[n + k]
+        work[angle + k] = phi
+        work[speed + k] = phid
+        work[rhs + k] = muscle_torque[k] + passive_torque(y[k], joints, o)
+    for j in range(n - 1):  # Q_j = τ_j − τ_{j+1}
+        work[rhs + j] -= work[rhs + j + 1]
     for j in range(n):
-        force = work[j, passive]
-        if j + 1 < n:
-            force -= work[j + 1, passive]
         coriolis = 0.0
         for k in range(n):
             if k != j:
-                lo, hi = (j, k) if j < k else (k, j)
-                d_jk = seg[lo, 2] * seg[hi, 1]
-                diff = work[j, angle] - work[k, angle]
-                coriolis += d_jk * math.sin(diff) * work[k, speed] * work[k, speed]
+                d_jk = seg[min(j, k), SEG_LENGTH_COLUMN] * seg[max(j, k), SEG_MOMENT_COLUMN]
+                diff = work[angle + j] - work[angle + k]
+                coriolis += d_jk * math.sin(diff) * work[speed + k] * work[speed + k]
                 if k > j:
-                    work[k, j] = d_jk * math.cos(diff)  # M_kj, lower triangle
-        work[j, rhs] = force - coriolis - seg[j, 3] * math.sin(work[j, angle])
-        work[j, j] = seg[j, 0]
+                    work[k * n + j] = d_jk * math.cos(diff)  # M_kj, lower triangle
+        work[rhs + j] = work[rhs + j] - coriolis \
+            - seg[j, SEG_GRAVITY_COLUMN] * math.sin(work[angle + j])
+        work[j * n + j] = seg[j, SEG_INERTIA_COLUMN]
     # LDLᵀ in place: L below the diagonal, D on it.
     for j in range(n):
-        d = work[j, j]
+        d = work[j * n + j]
         for k in range(j):
-            d -= work[j, k] * work[j, k] * work[k, k]
-        work[j, j] = d
+            d -= work[j * n + k] * work[j * n + k] * work[k * n + k]
+        work[j * n + j] = d
         for i in range(j + 1, n):
-            v = work[i, j]
+            v = work[i * n + j]
             for k in range(j):
-                v -= work[i, k] * work[j, k] * work[k, k]
-            work[i, j] = v / d
-    for i in range(n):  # L·z = rhs
-        v = work[i, rhs]
+                v -= work[i * n + k] * work[j * n + k] * work[k * n + k]
+            work[i * n + j] = v / d
+    for i in range(n):  # L·z = Q − c − g
+        v = work[rhs + i]
         for k in range(i):
-            v -= work[i, k] * work[k, rhs]
-        work[i, rhs] = v
-    for i in range(n - 1, -1, -1):  # D·Lᵀ·x = z
-        v = work[i, rhs] / work[i, i]
+            v -= work[i * n + k] * work[rhs + k]
+        work[rhs + i] = v
+    for i in range(n - 1, -1, -1):  # D·Lᵀ·φ̈ = z
+        v = work[rhs + i] / work[i * n + i]
         for k in range(i + 1, n):
-            v -= work[k, i] * work[k, rhs]
-        work[i, rhs] = v
-    previous = 0.0
-    for k in range(n):
-        qdd[k] = work[k, rhs] - previous
-        previous = work[k, rhs]
+            v -= work[k * n + i] * work[rhs + k]
+        work[rhs + i] = v
+    for k in range(n - 1, 0, -1):
+        work[rhs + k] -= work[rhs + k - 1]

@@ -30,10 +30,15 @@ from scipy.optimize import brentq
 from ..errors import ModelError, check_range
 from .activation import ActivationProfile
 from .body import (
+    SEG_GRAVITY_COLUMN,
+    SEG_INERTIA_COLUMN,
+    SEG_LENGTH_COLUMN,
+    SEG_MOMENT_COLUMN,
     ENDSTOP_HIGH,
     ENDSTOP_LOW,
     ENDSTOP_SCALE,
     ENDSTOP_TORQUE,
+    JOINT_ROW_SIZE,
     ZERO_OFFSET,
     passive_torque,
 )
@@ -41,9 +46,10 @@ from .torque_generator import ACTIVATION_FLOOR, H_ISOMETRIC, TorqueGeneratorUnit
 
 MAX_SEGMENTS = 6
 #: Columns of the packed segment array (see :meth:`ChainModel.pack`).
-SEG_INERTIA, SEG_MOMENT, SEG_LENGTH, SEG_GRAVITY = range(4)
+SEG_INERTIA, SEG_MOMENT, SEG_LENGTH, SEG_GRAVITY = (SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN,
+                                                    SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN)
 SEGMENT_ARRAY_SIZE = 4
-JOINT_ARRAY_SIZE = 5  # end stops and zero offset, indices of torquesim.model.body
+JOINT_ARRAY_SIZE = JOINT_ROW_SIZE  # end stops and zero offset (torquesim.model.body)
 #: Extra columns of the packed unit rows (after the TorqueGeneratorUnit array).
 UNIT_JOINT, UNIT_DIRECTION = 18, 19
 UNIT_ROW_SIZE = 20

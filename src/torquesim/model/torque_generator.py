@@ -10,7 +10,9 @@ differential activation d of Yeadon et al. (2006) in the form of Forrester et al
 quadratic (King-type) torque/angle curve T_θ. ω_cc > 0 is concentric (shortening).
 
 The compiled functions take a unit's parameters as a plain float array laid out by the index
-constants below (see :meth:`TorqueGeneratorUnit.to_array`).
+constants below (see :meth:`TorqueGeneratorUnit.to_array`). Their last argument ``o`` (default
+0) is the offset of the unit's row when ``p`` holds several units' rows one after another: the
+solvers pass every unit of a chain in one flat array, so the step loop creates no array views.
 """
 
 from __future__ import annotations
@@ -174,75 +176,75 @@ def _check_monotone(p: np.ndarray) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def tetanic_torque_velocity(omega, p):
+def tetanic_torque_velocity(omega, p, o=0):
     """T_ω(ω): tetanic torque/angular-velocity curve, N·m (Yeadon, King & Wilson 2006).
 
     Concentric (0 ≤ ω < ω_max): C/(ω_c + ω) − T_c; zero for ω ≥ ω_max;
     eccentric (ω < 0): E/(ω_e − ω) + T_max. Continuous at 0 (value T0), with a slope jump of
     factor ``eccentric_slope_ratio`` there.
     """
-    if omega >= p[OMEGA_MAX]:
+    if omega >= p[o + OMEGA_MAX]:
         return 0.0
     if omega >= 0.0:
-        return p[C_CONC] / (p[OMEGA_C] + omega) - p[T_C]
-    return p[E_ECC] / (p[OMEGA_E] - omega) + p[T_MAX]
+        return p[o + C_CONC] / (p[o + OMEGA_C] + omega) - p[o + T_C]
+    return p[o + E_ECC] / (p[o + OMEGA_E] - omega) + p[o + T_MAX]
 
 
 @njit(cache=True, error_model="numpy")
-def tetanic_torque_velocity_slope(omega, p):
+def tetanic_torque_velocity_slope(omega, p, o=0):
     """dT_ω/dω, N·m·s/rad; at the kink ω = 0 the concentric (right) slope."""
-    if omega >= p[OMEGA_MAX]:
+    if omega >= p[o + OMEGA_MAX]:
         return 0.0
     if omega >= 0.0:
-        x = p[OMEGA_C] + omega
-        return -p[C_CONC] / (x * x)
-    x = p[OMEGA_E] - omega
-    return p[E_ECC] / (x * x)
+        x = p[o + OMEGA_C] + omega
+        return -p[o + C_CONC] / (x * x)
+    x = p[o + OMEGA_E] - omega
+    return p[o + E_ECC] / (x * x)
 
 
 @njit(cache=True, error_model="numpy")
-def differential_activation(omega, p):
+def differential_activation(omega, p, o=0):
     """d(ω) = a_min + (1 − a_min)/(1 + exp(−(ω − ω_1)/ω_r)), dimensionless.
 
     Yeadon et al. (2006), form of Forrester et al. (2011).
     """
-    return p[A_MIN] + (1.0 - p[A_MIN]) / (1.0 + math.exp(-(omega - p[OMEGA_1]) / p[OMEGA_R]))
+    return p[o + A_MIN] + (1.0 - p[o + A_MIN]) / (1.0 + math.exp(-(omega - p[o + OMEGA_1]) / p[o + OMEGA_R]))
 
 
 @njit(cache=True, error_model="numpy")
-def differential_activation_slope(omega, p):
+def differential_activation_slope(omega, p, o=0):
     """dd/dω, s/rad."""
-    s = 1.0 / (1.0 + math.exp(-(omega - p[OMEGA_1]) / p[OMEGA_R]))
-    return (1.0 - p[A_MIN]) * s * (1.0 - s) / p[OMEGA_R]
+    s = 1.0 / (1.0 + math.exp(-(omega - p[o + OMEGA_1]) / p[o + OMEGA_R]))
+    return (1.0 - p[o + A_MIN]) * s * (1.0 - s) / p[o + OMEGA_R]
 
 
 @njit(cache=True, error_model="numpy")
-def torque_angle(theta_cc, p):
+def torque_angle(theta_cc, p, o=0):
     """T_θ(θ_cc) = max(1 − k2·(θ_cc − θ_opt)², 0.01), dimensionless (King-type quadratic)."""
-    x = theta_cc - p[THETA_OPT]
-    return max(1.0 - p[K2] * x * x, TORQUE_ANGLE_FLOOR)
+    x = theta_cc - p[o + THETA_OPT]
+    return max(1.0 - p[o + K2] * x * x, TORQUE_ANGLE_FLOOR)
 
 
 @njit(cache=True, error_model="numpy")
-def torque_angle_slope(theta_cc, p):
+def torque_angle_slope(theta_cc, p, o=0):
     """dT_θ/dθ_cc, rad⁻¹ (zero on the floor)."""
-    x = theta_cc - p[THETA_OPT]
-    if 1.0 - p[K2] * x * x > TORQUE_ANGLE_FLOOR:
-        return -2.0 * p[K2] * x
+    x = theta_cc - p[o + THETA_OPT]
+    if 1.0 - p[o + K2] * x * x > TORQUE_ANGLE_FLOOR:
+        return -2.0 * p[o + K2] * x
     return 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def ce_torque_velocity(omega, p):
+def ce_torque_velocity(omega, p, o=0):
     """h(ω) = d(ω)·T_ω(ω), N·m: the CE torque at full activation and optimal angle."""
-    return differential_activation(omega, p) * tetanic_torque_velocity(omega, p)
+    return differential_activation(omega, p, o) * tetanic_torque_velocity(omega, p, o)
 
 
 @njit(cache=True, error_model="numpy")
-def ce_torque_velocity_slope(omega, p):
+def ce_torque_velocity_slope(omega, p, o=0):
     """h'(ω) = d'·T_ω + d·T_ω', N·m·s/rad (concentric slope at the kink ω = 0)."""
-    return (differential_activation_slope(omega, p) * tetanic_torque_velocity(omega, p)
-            + differential_activation(omega, p) * tetanic_torque_velocity_slope(omega, p))
+    return (differential_activation_slope(omega, p, o) * tetanic_torque_velocity(omega, p, o)
+            + differential_activation(omega, p, o) * tetanic_torque_velocity_slope(omega, p, o))
 
 
 #: ce_velocity accepts a Halley step shorter than this (rad/s): convergence is cubic, so the
@@ -251,16 +253,16 @@ INVERSION_STEP_TOLERANCE = 1.0e-6
 
 
 @njit(cache=True, error_model="numpy")
-def ce_velocity(target, p, guess=np.nan, damping=0.0):
+def ce_velocity(target, p, guess=np.nan, damping=0.0, o=0):
     """CE angular velocity ω_cc solving h(ω_cc) − c·ω_cc = target (MODEL.md §2.5), rad/s.
 
     See :func:`ce_velocity_and_slope`, which this returns the first part of.
     """
-    return ce_velocity_and_slope(target, p, guess, damping)[0]
+    return ce_velocity_and_slope(target, p, guess, damping, o)[0]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def ce_velocity_and_slope(target, p, guess, damping):
+def ce_velocity_and_slope(target, p, guess, damping, o=0):
     """CE angular velocity ω_cc solving f(ω) = h(ω) − c·ω − target = 0 (MODEL.md §2.5), rad/s,
     and the slope f'(ω_cc) = h'(ω_cc) − c, N·m·s/rad (−inf where ω_cc is clamped and does not
     respond to the target; the concentric slope at ω_cc = 0).
@@ -280,28 +282,28 @@ def ce_velocity_and_slope(target, p, guess, damping):
     positive. The root does not depend on the guess beyond rounding. The slope is the one of the
     last step, taken within 1e-6 rad/s of the root.
     """
-    wmax = p[OMEGA_MAX]
+    wmax = p[o + OMEGA_MAX]
     if target <= 0.0 and damping == 0.0:
         return wmax, -np.inf
-    if target >= p[H_ECC_LIMIT] + damping * wmax:
+    if target >= p[o + H_ECC_LIMIT] + damping * wmax:
         return -wmax, -np.inf
-    if target == p[H_ISOMETRIC]:
-        return 0.0, ce_torque_velocity_slope(0.0, p) - damping
+    if target == p[o + H_ISOMETRIC]:
+        return 0.0, ce_torque_velocity_slope(0.0, p, o) - damping
     # On the branch, with v = shift + σ·ω and u = 1/v: T_ω = scale·u + offset,
     # dT_ω/dω = −σ·scale·u², d²T_ω/dω² = 2·scale·u³.
-    if target < p[H_ISOMETRIC]:  # concentric: T_ω = C/(ω_c + ω) − T_c
-        scale, offset, shift, sigma = p[C_CONC], -p[T_C], p[OMEGA_C], 1.0
+    if target < p[o + H_ISOMETRIC]:  # concentric: T_ω = C/(ω_c + ω) − T_c
+        scale, offset, shift, sigma = p[o + C_CONC], -p[o + T_C], p[o + OMEGA_C], 1.0
         lo, hi = 0.0, wmax
     else:  # eccentric: T_ω = E/(ω_e − ω) + T_max
-        scale, offset, shift, sigma = p[E_ECC], p[T_MAX], p[OMEGA_E], -1.0
+        scale, offset, shift, sigma = p[o + E_ECC], p[o + T_MAX], p[o + OMEGA_E], -1.0
         lo, hi = -wmax, 0.0
     if lo < guess < hi:  # False for NaN
         w = guess
     else:
-        w = sigma * (scale / (target * p[T0] / p[H_ISOMETRIC] - offset) - shift)
-    a_min = p[A_MIN]
+        w = sigma * (scale / (target * p[o + T0] / p[o + H_ISOMETRIC] - offset) - shift)
+    a_min = p[o + A_MIN]
     d_range = 1.0 - a_min
-    inv_rate = 1.0 / p[OMEGA_R]
+    inv_rate = 1.0 / p[o + OMEGA_R]
     for _ in range(100):
         if not (lo < w < hi):
             w = 0.5 * (lo + hi)
@@ -309,7 +311,7 @@ def ce_velocity_and_slope(target, p, guess, damping):
         tet = scale * u + offset
         tet1 = -sigma * scale * u * u
         tet2 = 2.0 * scale * u * u * u
-        e = math.exp((p[OMEGA_1] - w) * inv_rate)
+        e = math.exp((p[o + OMEGA_1] - w) * inv_rate)
         q = 1.0 + e
         # d = D/q, d' = D1/q², d'' = D2/q³  (d = a_min + (1 − a_min)/q)
         big_d = a_min * q + d_range
@@ -341,55 +343,55 @@ def ce_velocity_and_slope(target, p, guess, damping):
 
 
 @njit(cache=True, error_model="numpy")
-def unit_torque(stretch, p):
+def unit_torque(stretch, p, o=0):
     """SE torque k·max(s, 0), N·m: a slack SE cannot push."""
-    return p[K_SE] * max(stretch, 0.0)
+    return p[o + K_SE] * max(stretch, 0.0)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def ce_capacity(theta_cc, activation, p):
+def ce_capacity(theta_cc, activation, p, o=0):
     """max(a, 0.01)·T_θ(θ_cc), dimensionless: the fraction of h(ω) the CE can produce."""
-    return max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p)
+    return max(activation, ACTIVATION_FLOOR) * torque_angle(theta_cc, p, o)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def ce_equation(stretch, theta_cc, activation, p):
+def ce_equation(stretch, theta_cc, activation, p, o=0):
     """(capacity, target, c) of the CE equation h(ω) − c·ω = target (MODEL.md §2.5): capacity
     max(a, 0.01)·T_θ, target = k·max(s, 0)/capacity in N·m, c = β/capacity in N·m·s/rad."""
-    capacity = ce_capacity(theta_cc, activation, p)
-    return capacity, unit_torque(stretch, p) / capacity, p[CE_DAMPING] / capacity
+    capacity = ce_capacity(theta_cc, activation, p, o)
+    return capacity, unit_torque(stretch, p, o) / capacity, p[o + CE_DAMPING] / capacity
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_ce_velocity(stretch, theta_cc, activation, p, guess=np.nan):
+def unit_ce_velocity(stretch, theta_cc, activation, p, guess=np.nan, o=0):
     """CE velocity ω_cc (rad/s) of a unit with SE stretch ``stretch`` at CE angle ``theta_cc``.
 
     It solves max(a, 0.01)·T_θ·h(ω) − β·ω = k·max(s, 0), β = ``ce_damping`` (0 by default).
     ``guess`` (rad/s) only seeds the root finder."""
-    _, target, damping = ce_equation(stretch, theta_cc, activation, p)
-    return ce_velocity(target, p, guess, damping)
+    _, target, damping = ce_equation(stretch, theta_cc, activation, p, o)
+    return ce_velocity(target, p, guess, damping, o)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_ce_velocity_and_time_constant(stretch, theta_cc, activation, p, guess):
+def unit_ce_velocity_and_time_constant(stretch, theta_cc, activation, p, guess, o=0):
     """(ω_cc, τ): :func:`unit_ce_velocity` and the unit's time constant τ (s, as
     :func:`unit_time_constant`) from the slope the root finder ends with: with
     f' = h'(ω_cc) − β/(a·T_θ), τ = a·T_θ·|f'|/k = (a·T_θ·|h'| + β)/k. No extra evaluation."""
-    capacity, target, damping = ce_equation(stretch, theta_cc, activation, p)
-    w, slope = ce_velocity_and_slope(target, p, guess, damping)
-    return w, capacity * abs(slope) / p[K_SE]
+    capacity, target, damping = ce_equation(stretch, theta_cc, activation, p, o)
+    w, slope = ce_velocity_and_slope(target, p, guess, damping, o)
+    return w, capacity * abs(slope) / p[o + K_SE]
 
 
 @njit(cache=True, error_model="numpy")
-def unit_time_constant(omega_cc, theta_cc, activation, p):
+def unit_time_constant(omega_cc, theta_cc, activation, p, o=0):
     """Time constant τ = (a·T_θ·|h'(ω_cc)| + β)/k of the unit's CE equation, s (MODEL.md §5;
     β = ``ce_damping``, 0 by default).
 
     Returns +inf where the CE velocity is clamped (slack SE or ±ω_max), where it does not
     respond to the state. Explicit RK4 is stable for step/τ ≤ 2.785 (torquesim.solvers.fixed_step).
     """
-    wmax = p[OMEGA_MAX]
+    wmax = p[o + OMEGA_MAX]
     if omega_cc >= wmax or omega_cc <= -wmax:
         return np.inf
-    slope = abs(ce_torque_velocity_slope(omega_cc, p))
-    return (ce_capacity(theta_cc, activation, p) * slope + p[CE_DAMPING]) / p[K_SE]
+    slope = abs(ce_torque_velocity_slope(omega_cc, p, o))
+    return (ce_capacity(theta_cc, activation, p, o) * slope + p[o + CE_DAMPING]) / p[o + K_SE]

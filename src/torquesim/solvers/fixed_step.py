@@ -3,7 +3,11 @@ coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX t
 
 The loops take the packed chain arrays (:class:`~torquesim.model.chain.PackedChain`), write
 the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices
-below). All scratch arrays are allocated once per run; no Python work happens per step.
+below). Scratch arrays are allocated once per run, the parameter arrays are read flat with row
+offsets, and the loops over units and joints sit in the step loops themselves, calling only
+loop-free inlined functions of :mod:`torquesim.solvers.rates`: a compiled helper holding a
+loop over array arguments costs Numba atomic reference counting at every call, which was
+measured to cost more than the model itself.
 
 Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
 is evaluated (from the slope the CE root finder ends with, so at no extra cost) and the
@@ -18,14 +22,14 @@ import math
 import numpy as np
 from numba import njit
 
-from ..model.activation import activation
-from ..model.chain import UNIT_DIRECTION, UNIT_JOINT
+from ..model.body import joint_accelerations, single_segment_acceleration
+from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
 from .rates import (
-    activations_at,
-    body_rates,
-    chain_rates,
     joint_muscle_torques,
-    muscle_rates,
+    unit_activation,
+    unit_joint,
+    unit_joint_torque,
+    unit_rate,
 )
 from .sdirk import unit_implicit_ce_velocity
 
@@ -49,9 +53,13 @@ HOLD, LINEAR = 0, 1
 EXPLICIT_RK4, SDIRK2 = 0, 1
 #: Diagonal coefficient γ = 1 − 1/√2 of the L-stable two-stage SDIRK method of order 2.
 SDIRK_GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
+#: Rows of the scratch array of the partitioned loop (each row as long as the state).
+(_K1, _K2, _K3, _K4, _STAGE, _W1, _W2, _W3, _W4, _LEVELS, _TAU, _Q, _TORQUE, _TORQUE0,
+ _TORQUE_SLOPE, _Q_SLOPE, _RATE, _OMEGA, _OLD, _GUESS) = range(20)
+_SCRATCH_ROWS = 20
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _check_state(y, n):
     """OK, NON_FINITE or DIVERGED (|q̇| > DIVERGENCE_OMEGA at some joint)."""
     for i in range(y.shape[0]):
@@ -64,15 +72,12 @@ def _check_state(y, n):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _record_stiffness(stats, t, h_muscle, tau):
-    """Update the largest step/τ seen (the stability guard) with the units' time constants
-    τ (s) at time t."""
-    for u in range(tau.shape[0]):
-        ratio = h_muscle / tau[u]
-        if ratio > stats[WORST_RATIO]:
-            stats[WORST_RATIO] = ratio
-            stats[WORST_TIME] = t
-            stats[WORST_UNIT] = u
+def _record_stiffness(stats, t, ratio, u):
+    """Update the largest step/τ seen (the stability guard) with unit u's ratio at time t."""
+    if ratio > stats[WORST_RATIO]:
+        stats[WORST_RATIO] = ratio
+        stats[WORST_TIME] = t
+        stats[WORST_UNIT] = u
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -86,7 +91,16 @@ def _predict(preceding, preceding_before, this_before):
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_monolithic(y0, h, n_steps, seg, jnt, units, profiles, out, stats):
+def _general_accelerations(y, n, torque, seg, joints, work, dy, row):
+    """q̈ of a chain of two or more segments into dy[row, n:2n] (the general mass-matrix
+    solve, :func:`~torquesim.model.body.joint_accelerations`)."""
+    joint_accelerations(y, n, torque, seg, joints, work)
+    for k in range(n):
+        dy[row, n + k] = work[n * n + k]
+
+
+@njit(cache=True, error_model="numpy")
+def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats):
     """Classical RK4 on the whole state y = (q, q̇, θ_cc) (technique 2).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
@@ -95,57 +109,73 @@ def rk4_monolithic(y0, h, n_steps, seg, jnt, units, profiles, out, stats):
     """
     n = seg.shape[0]
     nu = units.shape[0]
+    width = profiles.shape[1]
+    units = units.ravel()
+    joints = joints.ravel()
+    profiles = profiles.ravel()
     size = y0.shape[0]
+    c = 2 * n
     y = y0.copy()
-    out[0, :] = y
+    for i in range(size):
+        out[0, i] = y[i]
     half = 0.5 * h
-    k1, k2, k3, k4 = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
+    k = np.empty((4, size))  # stage derivatives
     stage = np.empty(size)
-    # CE velocities (rad/s) of stages 1-4 in this step, of the previous step, and of stage 4
+    # CE velocities (rad/s) of stages 1-4 in this step and in the previous one, and of stage 4
     # two steps back: the history the predictions use (NaN: none yet).
     now = np.empty((4, nu))
     seen = np.full((4, nu), np.nan)
     seen4_before = np.full(nu, np.nan)
-    guess = np.empty(nu)
-    tau = np.empty(nu)
-    a_now, a_mid, a_next = np.empty(nu), np.empty(nu), np.empty(nu)
+    levels = np.empty((3, nu))  # activations at t, t + h/2, t + h
     torque = np.empty(n)
-    work = np.empty((n, n + 4))
-    activations_at(0.0, profiles, a_now)
+    work = np.empty(n * n + 3 * n)
+    for u in range(nu):
+        levels[0, u] = unit_activation(0.0, profiles, width, u)
     for step in range(n_steps):
         t = step * h
-        activations_at(t + half, profiles, a_mid)
-        activations_at((step + 1) * h, profiles, a_next)
         for u in range(nu):
-            guess[u] = _predict(seen[3, u], seen4_before[u], seen[0, u])
-        chain_rates(y, a_now, guess, seg, jnt, units, torque, work, k1, now[0], tau)
-        _record_stiffness(stats, t, h, tau)
-        for i in range(size):
-            stage[i] = y[i] + half * k1[i]
-        for u in range(nu):
-            guess[u] = _predict(now[0, u], seen[0, u], seen[1, u])
-        chain_rates(stage, a_mid, guess, seg, jnt, units, torque, work, k2, now[1], tau)
-        for i in range(size):
-            stage[i] = y[i] + half * k2[i]
-        for u in range(nu):
-            guess[u] = _predict(now[1, u], seen[1, u], seen[2, u])
-        chain_rates(stage, a_mid, guess, seg, jnt, units, torque, work, k3, now[2], tau)
-        for i in range(size):
-            stage[i] = y[i] + h * k3[i]
-        for u in range(nu):
-            guess[u] = _predict(now[2, u], seen[2, u], seen[3, u])
-        chain_rates(stage, a_next, guess, seg, jnt, units, torque, work, k4, now[3], tau)
+            levels[1, u] = unit_activation(t + half, profiles, width, u)
+            levels[2, u] = unit_activation((step + 1) * h, profiles, width, u)
+        for s in range(4):
+            if s == 0:
+                for i in range(size):
+                    stage[i] = y[i]
+            else:
+                factor = h if s == 3 else half
+                for i in range(size):
+                    stage[i] = y[i] + factor * k[s - 1, i]
+            at = 0 if s == 0 else (1 if s < 3 else 2)
+            for j in range(n):
+                torque[j] = 0.0
+            for u in range(nu):
+                x = stage[c + u]
+                j = unit_joint(units, u)
+                torque[j] += unit_joint_torque(stage[j], x, units, u)
+                if s == 0:
+                    guess = _predict(seen[3, u], seen4_before[u], seen[0, u])
+                else:
+                    guess = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
+                k[s, c + u], now[s, u], tau = unit_rate(stage[j], x, levels[at, u], guess, units,
+                                                        u)
+                if s == 0:
+                    _record_stiffness(stats, t, h / tau, u)
+            for j in range(n):
+                k[s, j] = stage[n + j]
+            if n == 1:
+                k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
+            else:
+                _general_accelerations(stage, n, torque, seg, joints, work, k, s)
         for u in range(nu):
             seen4_before[u] = seen[3, u]
             for s in range(4):
                 seen[s, u] = now[s, u]
-            a_now[u] = a_next[u]
+            levels[0, u] = levels[2, u]
         w = h / 6.0
         for i in range(size):
-            y[i] += w * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+            y[i] += w * (k[0, i] + 2.0 * (k[1, i] + k[2, i]) + k[3, i])
+            out[step + 1, i] = y[i]
         stats[NFEV_BODY] += 4
         stats[NFEV_MUSCLE] += 4
-        out[step + 1, :] = y
         stats[STEPS] = step + 1
         status = _check_state(y, n)
         if status != OK:
@@ -155,170 +185,165 @@ def rk4_monolithic(y0, h, n_steps, seg, jnt, units, profiles, out, stats):
 
 
 @njit(cache=True, error_model="numpy")
-def _body_rk4(y, n, h, torque0, torque_slope, seg, jnt, scratch, work, y_new):
+def _body_rk4(y, n, h, seg, joints, work, b, y_new):
     """One RK4 step of the body part (q, q̇) = y[:2n] with joint torques
-    τ(s) = τ0 + slope·s/h over the step; the result into y_new[:2n]. ``scratch``: 6 rows of
-    at least 2n."""
+    τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
+    result into y_new[:2n]. ``b`` is the partitioned loop's scratch array."""
     half = 0.5 * h
     m = 2 * n
-    torque = scratch[0]
-    k1, k2, k3, k4, stage = scratch[1], scratch[2], scratch[3], scratch[4], scratch[5]
-    body_rates(y, n, torque0, seg, jnt, work, k1)
-    for j in range(n):
-        torque[j] = torque0[j] + 0.5 * torque_slope[j]
-    for i in range(m):
-        stage[i] = y[i] + half * k1[i]
-    body_rates(stage, n, torque, seg, jnt, work, k2)
-    for i in range(m):
-        stage[i] = y[i] + half * k2[i]
-    body_rates(stage, n, torque, seg, jnt, work, k3)
-    for j in range(n):
-        torque[j] = torque0[j] + torque_slope[j]
-    for i in range(m):
-        stage[i] = y[i] + h * k3[i]
-    body_rates(stage, n, torque, seg, jnt, work, k4)
+    for s in range(4):
+        if s == 0:
+            for i in range(m):
+                b[_STAGE, i] = y[i]
+        else:
+            factor = h if s == 3 else half
+            for i in range(m):
+                b[_STAGE, i] = y[i] + factor * b[_K1 + s - 1, i]
+        fraction = 0.0 if s == 0 else (0.5 if s < 3 else 1.0)
+        for j in range(n):
+            b[_TORQUE, j] = b[_TORQUE0, j] + fraction * b[_TORQUE_SLOPE, j] if s > 0 \
+                else b[_TORQUE0, j]
+            b[_K1 + s, j] = b[_STAGE, n + j]
+        if n == 1:
+            b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
+                                                        joints)
+        else:
+            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
     w = h / 6.0
     for i in range(m):
-        y_new[i] = y[i] + w * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+        y_new[i] = y[i] + w * (b[_K1, i] + 2.0 * (b[_K2, i] + b[_K3, i]) + b[_K4, i])
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_rk4(t, theta_cc, h, substeps, q0, q_slope, start_rate, start_omega, units,
-                profiles, scratch, out):
-    """``substeps`` RK4 steps of the muscle part over [t, t + h] with joint angles
-    q(s) = q0 + slope·s/h; activation is evaluated at every stage time. Result into ``out``.
+def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new):
+    """``substeps`` RK4 steps of the muscle part θ_cc = y[2n:] over [t, t + h] with joint
+    angles q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]); activation is evaluated at every
+    stage time. Result into y_new[2n:].
 
-    ``start_rate``/``start_omega`` are the muscle rates and CE velocities at (t, q0, θ_cc)
-    already evaluated by the caller: the first stage of the first sub-step. Makes
-    4·substeps − 1 muscle evaluations.
+    The muscle rates and CE velocities at (t, q_n, θ_cc) (b[_RATE], b[_OMEGA]) were evaluated
+    by the caller: they are the first stage of the first sub-step. Makes 4·substeps − 1
+    muscle evaluations.
     """
-    nu = units.shape[0]
-    n = q0.shape[0]
     hs = h / substeps
     half = 0.5 * hs
-    k1, k2, k3, k4 = scratch[0, :nu], scratch[1, :nu], scratch[2, :nu], scratch[3, :nu]
-    w1, w2, w3, w4 = scratch[4, :nu], scratch[5, :nu], scratch[6, :nu], scratch[7, :nu]
-    stage, levels, tau = scratch[8, :nu], scratch[9, :nu], scratch[10, :nu]
-    q = scratch[11, :n]
-    x = out
+    c = 2 * n
     for u in range(nu):
-        x[u] = theta_cc[u]
-        w4[u] = start_omega[u]  # the previous sub-step's last stage seeds the next first
+        y_new[c + u] = y[c + u]
+        b[_W4, u] = b[_OMEGA, u]  # the previous sub-step's last stage seeds the next first
     for sub in range(substeps):
-        s = sub * hs
-        ts = t + s
-        if sub == 0:
+        s0 = sub * hs
+        for s in range(4):
+            if s == 0 and sub == 0:
+                for u in range(nu):
+                    b[_K1, u] = b[_RATE, u]
+                    b[_W1, u] = b[_OMEGA, u]
+                continue
+            ts = t + s0
+            lag = 0.0 if s == 0 else (half if s < 3 else hs)  # stage time − sub-step start
             for u in range(nu):
-                k1[u] = start_rate[u]
-                w1[u] = start_omega[u]
-        else:
-            for j in range(n):
-                q[j] = q0[j] + q_slope[j] / h * s
-            activations_at(ts, profiles, levels)
-            muscle_rates(q, x, levels, w4, units, k1, w1, tau)
-        for j in range(n):
-            q[j] = q0[j] + q_slope[j] / h * (s + half)
-        activations_at(ts + half, profiles, levels)
-        for u in range(nu):
-            stage[u] = x[u] + half * k1[u]
-        muscle_rates(q, stage, levels, w1, units, k2, w2, tau)
-        for u in range(nu):
-            stage[u] = x[u] + half * k2[u]
-        muscle_rates(q, stage, levels, w2, units, k3, w3, tau)
-        for j in range(n):
-            q[j] = q0[j] + q_slope[j] / h * (s + hs)
-        activations_at(ts + hs, profiles, levels)
-        for u in range(nu):
-            stage[u] = x[u] + hs * k3[u]
-        muscle_rates(q, stage, levels, w3, units, k4, w4, tau)
+                j = unit_joint(units, u)
+                q = y[j] + b[_Q_SLOPE, j] / h * (s0 + lag) if s > 0 else \
+                    y[j] + b[_Q_SLOPE, j] / h * s0
+                x = y_new[c + u] + lag * b[_K1 + s - 1, u] if s > 0 else y_new[c + u]
+                guess = b[_W4, u] if s == 0 else b[_W1 + s - 1, u]
+                at = ts + lag if s > 0 else ts
+                b[_K1 + s, u], b[_W1 + s, u], b[_TAU, u] = unit_rate(
+                    q, x, unit_activation(at, profiles, width, u), guess, units, u)
         w = hs / 6.0
         for u in range(nu):
-            x[u] += w * (k1[u] + 2.0 * (k2[u] + k3[u]) + k4[u])
+            y_new[c + u] += w * (b[_K1, u] + 2.0 * (b[_K2, u] + b[_K3, u]) + b[_K4, u])
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_sdirk2(t, theta_cc, h, substeps, q0, q_slope, start_omega, units, profiles,
-                   scratch, stats, out):
-    """``substeps`` steps of the muscle part over [t, t + h] by the L-stable two-stage SDIRK
-    method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h; stiffly accurate), each
-    unit's stage equation solved by :func:`~torquesim.solvers.sdirk.unit_implicit_ce_velocity`.
-    Joint angles q(s) = q0 + slope·s/h. With this the muscle part has no step-size stability
-    limit. Result into ``out``.
+def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new):
+    """``substeps`` steps of the muscle part θ_cc = y[2n:] over [t, t + h] by the L-stable
+    two-stage SDIRK method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h; stiffly
+    accurate), each unit's stage equation solved by
+    :func:`~torquesim.solvers.sdirk.unit_implicit_ce_velocity`. Joint angles
+    q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]). With this the muscle part has no step-size
+    stability limit. Result into y_new[2n:].
 
-    ``start_omega`` (the explicit CE velocities at the step start) seeds Newton's method. Each
-    unit residual evaluation is counted in ``stats[UNIT_SOLVES]``.
+    The explicit CE velocities at the step start (b[_OMEGA]) seed Newton's method. Each unit
+    residual evaluation is counted in ``stats[UNIT_SOLVES]``. The units are independent given
+    q(s), so each is advanced over the whole step in turn.
     """
-    nu = units.shape[0]
     hs = h / substeps
     gh = SDIRK_GAMMA * hs
-    guess = scratch[0]
-    stage_x = scratch[1]
-    x = out
-    for u in range(nu):
-        x[u] = theta_cc[u]
-        guess[u] = start_omega[u]
     solves = 0
-    for sub in range(substeps):
-        s = sub * hs
-        ts = t + s
-        for u in range(nu):
-            j = int(units[u, UNIT_JOINT])
-            d = units[u, UNIT_DIRECTION]
-            rate = q_slope[j] / h
+    c = 2 * n
+    for u in range(nu):
+        o = u * UNIT_ROW_SIZE
+        j = int(units[o + UNIT_JOINT])
+        d = units[o + UNIT_DIRECTION]
+        rate = b[_Q_SLOPE, j] / h
+        x = y[c + u]
+        guess = b[_OMEGA, u]
+        for sub in range(substeps):
+            s = sub * hs
+            ts = t + s
             # Stage 1 at t + γh: θ_cc = θ_cc,n + γh·(dθ_cc/dt)_1.
-            q1 = q0[j] + rate * (s + gh)
-            w1, count = unit_implicit_ce_velocity(d * (x[u] - q1), x[u], d, gh,
-                                                  activation(ts + gh, profiles[u]),
-                                                  units[u], guess[u])
+            q1 = y[j] + rate * (s + gh)
+            w1, count = unit_implicit_ce_velocity(d * (x - q1), x, d, gh,
+                                                  unit_activation(ts + gh, profiles, width, u),
+                                                  units, guess, o)
             solves += count
             # Stage 2 at t + h: θ_cc = θ_cc,n + (1 − γ)h·(dθ_cc/dt)_1 + γh·(dθ_cc/dt)_2.
-            q2 = q0[j] + rate * (s + hs)
-            stage_x[u] = x[u] + d * ((hs - gh) * w1)
-            w2, count = unit_implicit_ce_velocity(d * (stage_x[u] - q2), stage_x[u], d, gh,
-                                                  activation(ts + hs, profiles[u]),
-                                                  units[u], w1)
+            q2 = y[j] + rate * (s + hs)
+            x2 = x + d * ((hs - gh) * w1)
+            w2, count = unit_implicit_ce_velocity(d * (x2 - q2), x2, d, gh,
+                                                  unit_activation(ts + hs, profiles, width, u),
+                                                  units, w1, o)
             solves += count
-            x[u] = stage_x[u] + d * (gh * w2)
-            guess[u] = w2
+            x = x2 + d * (gh * w2)
+            guess = w2
+        y_new[c + u] = x
     stats[UNIT_SOLVES] += solves
 
 
 @njit(cache=True, error_model="numpy")
-def _stage_exchange_step(t, y, h, start_omega, seg, jnt, units, profiles, scratch, work,
+def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
                          y_new):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
     The body stage sees the torque of the muscle stage state and the muscle stage sees the
     body stage angle: algebraically this is monolithic RK4, written through the two parts.
-    ``start_omega`` (CE velocities at the step start) seeds the first stage's root finder.
+    The CE velocities at the step start (b[_OMEGA]) seed the first stage's root finder.
     """
-    n = seg.shape[0]
     size = y.shape[0]
     half = 0.5 * h
-    k1, k2, k3, k4, stage = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
-    nu = units.shape[0]
-    w1, w2, w3, w4 = scratch[5][:nu], scratch[6][:nu], scratch[7][:nu], scratch[8][:nu]
-    levels, tau, torque = scratch[9][:nu], scratch[10][:nu], scratch[11][:n]
-    activations_at(t, profiles, levels)
-    chain_rates(y, levels, start_omega, seg, jnt, units, torque, work, k1, w1, tau)
-    for i in range(size):
-        stage[i] = y[i] + half * k1[i]
-    activations_at(t + half, profiles, levels)
-    chain_rates(stage, levels, w1, seg, jnt, units, torque, work, k2, w2, tau)
-    for i in range(size):
-        stage[i] = y[i] + half * k2[i]
-    chain_rates(stage, levels, w2, seg, jnt, units, torque, work, k3, w3, tau)
-    for i in range(size):
-        stage[i] = y[i] + h * k3[i]
-    activations_at(t + h, profiles, levels)
-    chain_rates(stage, levels, w3, seg, jnt, units, torque, work, k4, w4, tau)
+    c = 2 * n
+    for s in range(4):
+        if s == 0:
+            for i in range(size):
+                b[_STAGE, i] = y[i]
+        else:
+            factor = h if s == 3 else half
+            for i in range(size):
+                b[_STAGE, i] = y[i] + factor * b[_K1 + s - 1, i]
+        at = t if s == 0 else (t + half if s < 3 else t + h)
+        for j in range(n):
+            b[_TORQUE, j] = 0.0
+        for u in range(nu):
+            x = b[_STAGE, c + u]
+            j = unit_joint(units, u)
+            b[_TORQUE, j] += unit_joint_torque(b[_STAGE, j], x, units, u)
+            guess = b[_OMEGA, u] if s == 0 else b[_W1 + s - 1, u]
+            b[_K1 + s, c + u], b[_W1 + s, u], b[_TAU, u] = unit_rate(
+                b[_STAGE, j], x, unit_activation(at, profiles, width, u), guess, units, u)
+        for j in range(n):
+            b[_K1 + s, j] = b[_STAGE, n + j]
+        if n == 1:
+            b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
+                                                        joints)
+        else:
+            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
     w = h / 6.0
     for i in range(size):
-        y_new[i] = y[i] + w * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+        y_new[i] = y[i] + w * (b[_K1, i] + 2.0 * (b[_K2, i] + b[_K3, i]) + b[_K4, i])
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_partitioned(y0, h, n_steps, seg, jnt, units, profiles, coupling, out, stats):
+def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -336,87 +361,91 @@ def rk4_partitioned(y0, h, n_steps, seg, jnt, units, profiles, coupling, out, st
     implicit_muscles = int(coupling[MUSCLE_SOLVER]) == SDIRK2
     n = seg.shape[0]
     nu = units.shape[0]
+    width = profiles.shape[1]
+    units = units.ravel()
+    joints = joints.ravel()
+    profiles = profiles.ravel()
     size = y0.shape[0]
-    width = max(size, n + 1)
+    c = 2 * n
     y = y0.copy()
     y1 = y0.copy()
-    old = np.empty(size)
-    out[0, :] = y
-    scratch = np.empty((12, width))
-    work = np.empty((n, n + 4))
-    rate = np.empty(nu)
-    omega = np.full(nu, np.nan)
-    tau = np.empty(nu)
-    levels = np.empty(nu)
-    torque_n = np.empty(n)
-    torque_prev = np.empty(n)
-    torque_slope = np.empty(n)
-    torque_end = np.empty(n)
+    for i in range(size):
+        out[0, i] = y[i]
+    b = np.empty((_SCRATCH_ROWS, size))
+    work = np.empty(n * n + 3 * n)
     q_prev = y0[:n].copy()
-    q_slope = np.empty(n)
-    joint_muscle_torques(y[:n], y[2 * n:], units, torque_prev)
+    torque_prev = np.empty(n)
+    for u in range(nu):
+        b[_OMEGA, u] = np.nan
+    joint_muscle_torques(y, y, c, units, nu, torque_prev, n)
     hm = h / substeps
     for step in range(n_steps):
         t = step * h
-        joint_muscle_torques(y[:n], y[2 * n:], units, torque_n)
-        activations_at(t, profiles, levels)
-        muscle_rates(y[:n], y[2 * n:], levels, omega, units, rate, omega, tau)
+        for j in range(n):
+            b[_TORQUE0, j] = 0.0
+        for u in range(nu):
+            x = y[c + u]
+            j = unit_joint(units, u)
+            b[_TORQUE0, j] += unit_joint_torque(y[j], x, units, u)
+            b[_RATE, u], b[_OMEGA, u], tau = unit_rate(
+                y[j], x, unit_activation(t, profiles, width, u), b[_OMEGA, u], units, u)
+            _record_stiffness(stats, t, hm / tau, u)
         stats[NFEV_MUSCLE] += 1
-        _record_stiffness(stats, t, hm, tau)
         if order == EVERY_STAGE:
-            _stage_exchange_step(t, y, h, omega, seg, jnt, units, profiles, scratch, work, y1)
+            _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
+                                 y1)
             stats[NFEV_BODY] += 4
             stats[NFEV_MUSCLE] += 4
             stats[SWEEPS] += 1
         else:
             for j in range(n):
                 if predictor == LINEAR and step > 0:
-                    q_slope[j] = y[j] - q_prev[j]
-                    torque_slope[j] = torque_n[j] - torque_prev[j]
+                    b[_Q_SLOPE, j] = y[j] - q_prev[j]
+                    b[_TORQUE_SLOPE, j] = b[_TORQUE0, j] - torque_prev[j]
                 else:
-                    q_slope[j] = 0.0
-                    torque_slope[j] = 0.0
+                    b[_Q_SLOPE, j] = 0.0
+                    b[_TORQUE_SLOPE, j] = 0.0
             for i in range(size):
                 y1[i] = y[i]
             for sweep in range(sweeps):
                 for i in range(size):
-                    old[i] = y1[i]
+                    b[_OLD, i] = y1[i]
                 if order == MUSCLES_FIRST:
-                    _muscle_step(t, y[2 * n:], h, substeps, y[:n], q_slope, rate, omega, units,
-                                 profiles, implicit_muscles, scratch, stats, y1[2 * n:])
+                    _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
+                                 implicit_muscles, b, stats, y1)
                     for j in range(n):
-                        scratch[0, j] = y[j] + q_slope[j]
-                    joint_muscle_torques(scratch[0, :n], y1[2 * n:], units, torque_end)
+                        b[_Q, j] = y[j] + b[_Q_SLOPE, j]
+                    joint_muscle_torques(b[_Q], y1, c, units, nu, b[_TORQUE], n)
                     for j in range(n):
-                        torque_slope[j] = torque_end[j] - torque_n[j]
-                    _body_rk4(y, n, h, torque_n, torque_slope, seg, jnt, scratch[5:], work, y1)
+                        b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
+                    _body_rk4(y, n, h, seg, joints, work, b, y1)
                 else:
-                    _body_rk4(y, n, h, torque_n, torque_slope, seg, jnt, scratch[5:], work, y1)
+                    _body_rk4(y, n, h, seg, joints, work, b, y1)
                     if order == BODY_FIRST:
                         for j in range(n):
-                            q_slope[j] = y1[j] - y[j]
-                    _muscle_step(t, y[2 * n:], h, substeps, y[:n], q_slope, rate, omega, units,
-                                 profiles, implicit_muscles, scratch, stats, y1[2 * n:])
+                            b[_Q_SLOPE, j] = y1[j] - y[j]
+                    _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
+                                 implicit_muscles, b, stats, y1)
                 stats[NFEV_BODY] += 4
                 stats[SWEEPS] += 1
                 # Later sweeps see the other part's end-of-step values (waveform relaxation).
-                joint_muscle_torques(y1[:n], y1[2 * n:], units, torque_end)
+                joint_muscle_torques(y1, y1, c, units, nu, b[_TORQUE], n)
                 for j in range(n):
-                    q_slope[j] = y1[j] - y[j]
-                    torque_slope[j] = torque_end[j] - torque_n[j]
+                    b[_Q_SLOPE, j] = y1[j] - y[j]
+                    b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
                 if sweep > 0 and tol > 0.0:
                     change = 0.0
                     for i in range(size):
-                        scale = h if n <= i < 2 * n else 1.0
-                        change = max(change, abs(y1[i] - old[i]) * scale)
+                        scale = h if n <= i < c else 1.0
+                        change = max(change, abs(y1[i] - b[_OLD, i]) * scale)
                     if change <= tol:
                         break
         for j in range(n):
             q_prev[j] = y[j]
-            torque_prev[j] = torque_n[j]
+            torque_prev[j] = b[_TORQUE0, j]
         for i in range(size):
             y[i] = y1[i]
-        out[step + 1, :] = y
+            out[step + 1, i] = y[i]
         stats[STEPS] = step + 1
         status = _check_state(y, n)
         if status != OK:
@@ -425,16 +454,13 @@ def rk4_partitioned(y0, h, n_steps, seg, jnt, units, profiles, coupling, out, st
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_step(t, theta_cc, h, substeps, q0, q_slope, start_rate, start_omega, units,
-                 profiles, implicit, scratch, stats, out):
+def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, implicit, b, stats, y_new):
     """Advance the muscle part over one body step with explicit RK4 or implicit SDIRK2."""
     if implicit:
-        _muscle_sdirk2(t, theta_cc, h, substeps, q0, q_slope, start_omega, units, profiles,
-                       scratch, stats, out)
+        _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new)
         return
     stats[NFEV_MUSCLE] += 4 * substeps - 1
-    _muscle_rk4(t, theta_cc, h, substeps, q0, q_slope, start_rate, start_omega, units,
-                profiles, scratch, out)
+    _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new)
 
 
 def new_stats() -> np.ndarray:

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from ..model.body import passive_torque
-from ..model.chain import ChainModel, PackedChain
+from ..model.body import JOINT_ROW_SIZE, passive_torque
+from ..model.chain import UNIT_ROW_SIZE, ChainModel, PackedChain
 from ..model.torque_generator import (
     ACTIVATION_FLOOR,
     unit_ce_velocity,
@@ -17,34 +17,38 @@ from ..model.torque_generator import (
     unit_torque,
 )
 from .fixed_step import RK4_STABILITY_LIMIT
-from .rates import activations_at, joint_muscle_torques, unit_stretch
+from .rates import joint_muscle_torques, unit_activation, unit_joint, unit_stretch
 
 
 @njit(cache=True)
-def derived_quantities(time, states, seg, jnt, units, profiles, unit_out, joint_out):
+def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joint_out):
     """Per row of ``states`` = (q, q̇, θ_cc): fill ``unit_out`` (rows × U × 4) with each unit's
     torque T (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s) and time constant τ (s);
     and ``joint_out`` (rows × n × 2) with each joint's net muscle torque Σ d·T and end-stop
-    torque T_p (N·m)."""
+    torque T_p (N·m). Takes the 2-D arrays of :class:`~torquesim.model.chain.PackedChain`."""
     n = seg.shape[0]
     nu = units.shape[0]
-    levels = np.empty(nu)
+    width = profiles.shape[1]
+    units = units.ravel()
+    joints = joints.ravel()
+    profiles = profiles.ravel()
+    torque = np.empty(n)
     for i in range(time.shape[0]):
-        q = states[i, :n]
-        theta_cc = states[i, 2 * n:]
-        activations_at(time[i], profiles, levels)
-        joint_muscle_torques(q, theta_cc, units, joint_out[i, :, 0])
+        y = states[i]
+        joint_muscle_torques(y, y, 2 * n, units, nu, torque, n)
         for j in range(n):
-            joint_out[i, j, 1] = passive_torque(q[j], jnt[j])
+            joint_out[i, j, 0] = torque[j]
+            joint_out[i, j, 1] = passive_torque(y[j], joints, j * JOINT_ROW_SIZE)
         for u in range(nu):
-            p = units[u]
-            stretch = unit_stretch(q, theta_cc[u], units, u)
-            level = max(levels[u], ACTIVATION_FLOOR)
-            w = unit_ce_velocity(stretch, theta_cc[u], level, p)
-            unit_out[i, u, 0] = unit_torque(stretch, p)
+            o = u * UNIT_ROW_SIZE
+            theta_cc = y[2 * n + u]
+            stretch = unit_stretch(y[unit_joint(units, u)], theta_cc, units, u)
+            level = max(unit_activation(time[i], profiles, width, u), ACTIVATION_FLOOR)
+            w = unit_ce_velocity(stretch, theta_cc, level, units, np.nan, o)
+            unit_out[i, u, 0] = unit_torque(stretch, units, o)
             unit_out[i, u, 1] = level
             unit_out[i, u, 2] = w
-            unit_out[i, u, 3] = unit_time_constant(w, theta_cc[u], level, p)
+            unit_out[i, u, 3] = unit_time_constant(w, theta_cc, level, units, o)
 
 
 @dataclass(frozen=True)

@@ -22,25 +22,25 @@ from ..model.torque_generator import (
 
 
 @njit(cache=True, error_model="numpy")
-def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity_activation, p):
+def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity_activation, p, o=0):
     """Residual G(w) and dG/dw of the implicit CE equation (see unit_implicit_ce_velocity)."""
     x = theta_cc_known + sign * gamma_h * w
-    t_theta = torque_angle(x, p)
-    t_theta_slope = torque_angle_slope(x, p) * sign * gamma_h  # d T_θ / d w
+    t_theta = torque_angle(x, p, o)
+    t_theta_slope = torque_angle_slope(x, p, o) * sign * gamma_h  # d T_θ / d w
     stretch = stretch_known + gamma_h * w
-    h_value = ce_torque_velocity(w, p)
-    g = capacity_activation * t_theta * h_value - p[CE_DAMPING] * w
+    h_value = ce_torque_velocity(w, p, o)
+    g = capacity_activation * t_theta * h_value - p[o + CE_DAMPING] * w
     slope = capacity_activation * (t_theta_slope * h_value
-                                   + t_theta * ce_torque_velocity_slope(w, p)) - p[CE_DAMPING]
+                                   + t_theta * ce_torque_velocity_slope(w, p, o)) - p[o + CE_DAMPING]
     if stretch > 0.0:
-        g -= p[K_SE] * stretch
-        slope -= p[K_SE] * gamma_h
+        g -= p[o + K_SE] * stretch
+        slope -= p[o + K_SE] * gamma_h
     return g, slope
 
 
 @njit(cache=True, error_model="numpy")
 def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, activation, p,
-                              guess):
+                              guess, o=0):
     """CE velocity w (rad/s) of one implicit (diagonally implicit Runge-Kutta) stage.
 
     The stage state is θ_cc = θ_cc,known + sign·γh·w (sign d: +1 flexor, −1 extensor, whose CE
@@ -57,16 +57,16 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
     step that would cross the kink of T_ω at w = 0 is stopped at w = 0, so every later step
     stays on one smooth branch. Returns (w, residual evaluations).
     """
-    wmax = p[OMEGA_MAX]
+    wmax = p[o + OMEGA_MAX]
     cap_a = max(activation, ACTIVATION_FLOOR)
-    g_low, _ = _implicit_residual(-wmax, stretch_known, theta_cc_known, sign, gamma_h, cap_a, p)
+    g_low, _ = _implicit_residual(-wmax, stretch_known, theta_cc_known, sign, gamma_h, cap_a, p, o)
     evaluations = 1
     if g_low <= 0.0:
         return -wmax, evaluations
     lo, hi = -wmax, wmax
     w = min(max(guess, -wmax), wmax)
     for _ in range(100):
-        g, slope = _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, cap_a, p)
+        g, slope = _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, cap_a, p, o)
         evaluations += 1
         if g == 0.0:
             return w, evaluations
