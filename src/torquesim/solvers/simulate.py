@@ -188,7 +188,8 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
 
     def rhs(t, y):
         calls[0] += 1
-        return chain_derivative(t, y, *packed)
+        # contiguous: SciPy passes views, which would compile a second specialization
+        return chain_derivative(t, np.ascontiguousarray(y, dtype=float), *packed)
 
     states = np.full((grid.size, model.state_size), np.nan)
     states[0] = y0
