@@ -16,11 +16,52 @@ def reference(model):
 
 
 def max_angle_error(result, reference) -> float:
-    """Max |θ − θ_ref| (rad) at the times both grids share (the result's step and the
-    reference's output step are multiples of one another)."""
+    """Max |q − q_ref| (rad) over the joints at the times both grids share (the result's step
+    and the reference's output step are multiples of one another)."""
     ratio = (reference.time[1] - reference.time[0]) / result.step
     if ratio >= 1:
         k = int(round(ratio))
-        return float(np.max(np.abs(result.theta[::k] - reference.theta)))
+        return float(np.max(np.abs(result.q[::k] - reference.q)))
     k = int(round(1 / ratio))
-    return float(np.max(np.abs(result.theta - reference.theta[::k])))
+    return float(np.max(np.abs(result.q - reference.q[::k])))
+
+
+def chain_energy(result):
+    """Kinetic + gravity + SE + end-stop energy (J) of a chain run, written independently of
+    the solver's mass matrix: every segment and point load as a rigid body whose centre moves
+    with v = Σ_{j<k} L_j·φ̇_j·e(φ_j) + r·φ̇_k·e(φ_k), e(φ) = (cos φ, sin φ), at height
+    −(Σ_{j<k} L_j·cos φ_j + r·cos φ_k)."""
+    from torquesim.model.body import passive_energy
+
+    m = result.model
+    phi = m.base_angle + np.cumsum(result.q, axis=1)
+    phid = np.cumsum(result.qd, axis=1)
+    energy = np.zeros(result.time.size)
+    base_v = np.zeros((result.time.size, 2))
+    base_h = np.zeros(result.time.size)
+    for k, seg in enumerate(m.segments):
+        e = np.stack([np.cos(phi[:, k]), np.sin(phi[:, k])], axis=1)
+        bodies = [(seg.mass, seg.com_distance, seg.inertia_about_joint
+                   - seg.mass * seg.com_distance**2)]
+        bodies += [(ld.mass, ld.distance, ld.inertia) for ld in seg.loads]
+        for mass, r, own in bodies:
+            v = base_v + r * phid[:, k:k + 1] * e
+            height = base_h - r * np.cos(phi[:, k])
+            energy += 0.5 * mass * np.sum(v**2, axis=1) + 0.5 * own * phid[:, k]**2 \
+                + mass * m.gravity * height
+        base_v = base_v + seg.length * phid[:, k:k + 1] * e
+        base_h = base_h - seg.length * np.cos(phi[:, k])
+    for j, joint in enumerate(m.joints):
+        stops = joint.endstop_array()
+        energy += np.array([passive_energy(x, stops) for x in result.q[:, j]])
+    for u, unit in enumerate(m.units):
+        q = result.q[:, m.joint_index(unit.joint)]
+        stretch = unit.direction * (result.theta_cc[:, u] - q)
+        energy += 0.5 * unit.parameters.se_stiffness * np.maximum(stretch, 0.0) ** 2
+    return energy
+
+
+def ce_power(result):
+    """Σ T_u·ω_cc,u (W): the power the contractile elements deliver (concentric positive)."""
+    c = result.columns()
+    return sum(c[f"torque_{u.name}"] * c[f"omega_cc_{u.name}"] for u in result.model.units)

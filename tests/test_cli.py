@@ -18,7 +18,7 @@ def run(argv, capsys):
 def test_simulate_prints_a_summary(capsys):
     code, out, err = run(["simulate", "--duration", "1.5"], capsys)
     assert code == 0
-    assert "peak angle    138.7" in out and "steps         15000" in out
+    assert "elbow_flexion peak 138.7" in out and "steps         15000" in out
     assert err == ""
 
 
@@ -67,10 +67,12 @@ def test_bad_input_is_one_line_exit_2_no_file(tmp_path, monkeypatch, capsys, arg
 def test_bad_model_file_names_the_key(tmp_path, capsys):
     bad = tmp_path / "m.toml"
     assert run(["model", "--out", str(bad)], capsys)[0] == 0
-    bad.write_text(bad.read_text().replace("dumbbell_mass = 5.0", "dumbbell_mass = -5.0"))
+    text = bad.read_text()
+    assert 'name = "dumbbell", mass = 5.0,' in text
+    bad.write_text(text.replace('name = "dumbbell", mass = 5.0,', 'name = "dumbbell", mass = -5.0,'))
     code, _, err = run(["simulate", "--model", str(bad), "--out", str(tmp_path / "o.csv")],
                        capsys)
-    assert code == 2 and "body.dumbbell_mass" in err and "[0, inf)" in err
+    assert code == 2 and "segments[0].loads[0].mass" in err and "[0, inf)" in err
     assert not (tmp_path / "o.csv").exists()
 
 
@@ -84,3 +86,34 @@ def test_installed_entry_point(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "torquesim.cli", "simulate", "--step", "0.7ms",
                            "--duration", "0.9"], capture_output=True, text=True, cwd=tmp_path)
     assert proc.returncode == 2 and proc.stderr.startswith("error: step")
+
+
+@pytest.mark.parametrize("name", ["knee-extension", "arm-raise"])
+def test_presets_simulate_with_columns_named_after_joints_and_units(tmp_path, capsys, name):
+    path = tmp_path / f"{name}.toml"
+    assert run(["model", name, "--out", str(path)], capsys)[0] == 0
+    chain = ts.load_model(path)
+    assert chain == ts.load_model(f"builtin:{name}")
+    out_file, png = tmp_path / "run.mot", tmp_path / "run.png"
+    code, out, err = run(["simulate", "--model", str(path), "--method", "imex", "--step",
+                          "2ms", "--out", str(out_file), "--plot", str(png)], capsys)
+    assert code == 0, err
+    table = ts.read_table(out_file)
+    for joint in chain.joints:
+        assert joint.coordinate in table and f"torque_net_{joint.name}" in table
+        assert joint.coordinate in out  # one summary line per joint
+    for unit in chain.units:
+        assert f"torque_{unit.name}" in table and f"activation_{unit.name}" in table
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_fit_refuses_a_chain_with_a_clear_message(tmp_path, capsys):
+    code, _, err = run(["fit", "--model", "builtin:arm-raise", "--out", str(tmp_path / "f")],
+                       capsys)
+    assert code == 2 and "one-joint elbow" in err and err.count("\n") == 1
+    assert not (tmp_path / "f").exists()
+
+
+def test_unknown_preset_lists_the_allowed_ones(capsys):
+    code, _, err = run(["simulate", "--model", "builtin:squat"], capsys)
+    assert code == 2 and "builtin:arm-raise" in err

@@ -256,7 +256,7 @@ def test_fit_cli_writes_loadable_outputs_and_resumes(tmp_path, capsys):
     assert summary["simulations"] > 0 and summary["reference_rms_error_deg"] < 20
     fitted = ts.load_model(out / "fitted_model.toml")
     assert fitted.duration == pytest.approx(1.0)
-    assert math.degrees(fitted.initial_angle) == pytest.approx(20.0)
+    assert math.degrees(fitted.joints[0].initial_angle) == pytest.approx(20.0)
     table = ts.read_table(out / "fit_motion.csv")
     assert list(table)[:4] == ["time", "target_deg", "fitted_deg", "reference_deg"]
     assert (out / "fit.png").stat().st_size > 0

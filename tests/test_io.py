@@ -18,17 +18,21 @@ def test_toml_round_trip_is_exact(tmp_path):
         extensor=ts.TorqueGeneratorUnit(**{**ts.TorqueGeneratorUnit.extensor_default().as_dict(),
                                            "ce_damping": 0.25}))
     path = ts.save_model(model, tmp_path / "m.toml")
-    assert ts.load_model(path) == model
-    assert ts.load_model(ts.save_model(ts.default_model(), tmp_path / "d.toml")) == \
-        ts.default_model()
+    assert ts.load_model(path) == model.to_chain()
+    for name in ("elbow-curl", "knee-extension", "arm-raise"):
+        preset = ts.load_model(f"builtin:{name}")
+        assert ts.load_model(ts.save_model(preset, tmp_path / f"{name}.toml")) == preset
 
 
-def test_partial_file_takes_defaults(tmp_path):
+def test_partial_legacy_elbow_file_takes_defaults(tmp_path):
+    """An elbow file of torquesim 0.1 ([body], [flexor], [extensor]) still loads."""
     path = tmp_path / "m.toml"
     path.write_text("[body]\ndumbbell_mass = 2\n")
     m = ts.load_model(path)
-    assert m.body.dumbbell_mass == 2.0
-    assert m.flexor == ts.default_model().flexor
+    assert m.segments[0].loads[0].mass == 2.0
+    assert m.units[0].parameters == ts.default_model().flexor
+    expected = ts.default_model().replace(body=ts.BodyParameters(dumbbell_mass=2.0)).to_chain()
+    assert m == expected
 
 
 @pytest.mark.parametrize("text, field", [
@@ -63,10 +67,11 @@ def test_missing_file(tmp_path):
         ts.load_model(tmp_path / "nope.toml")
 
 
-def test_toml_is_commented_with_units():
+def test_toml_is_commented_with_units_and_sources():
     text = model_to_toml(ts.default_model())
     assert "se_stiffness = 600.0  # N m/rad" in text
     assert 'initial_level = "equilibrium"' in text
+    assert "de Leva" in model_to_toml(ts.load_model("builtin:arm-raise"))
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".sto"])
@@ -75,15 +80,21 @@ def test_result_table_round_trip(tmp_path, suffix):
     path = tmp_path / f"run{suffix}"
     result.save(path)
     table = ts.read_table(path)
-    assert list(k for k in table if not k.startswith("_")) == list(ts.COLUMNS)
     cols = result.columns()
-    for name in ts.COLUMNS:
+    assert list(k for k in table if not k.startswith("_")) == list(cols)
+    assert list(cols) == ["time", "elbow_flexion", "elbow_flexion_speed",
+                          "theta_cc_elbow_flexor", "theta_cc_elbow_extensor",
+                          "torque_elbow_flexor", "torque_elbow_extensor", "torque_net_elbow",
+                          "torque_passive_elbow", "activation_elbow_flexor",
+                          "activation_elbow_extensor", "omega_cc_elbow_flexor",
+                          "omega_cc_elbow_extensor"]
+    for name in cols:
         np.testing.assert_array_equal(table[name], cols[name])
     assert (tmp_path / f"run{suffix}.manifest.json").exists()
     if suffix == ".sto":
         head = path.read_text().splitlines()[:7]
         assert "inDegrees=no" in head and "endheader" in head
-        assert head[2] == f"nRows={result.time.size}" and head[3] == "nColumns=12"
+        assert head[2] == f"nRows={result.time.size}" and head[3] == "nColumns=13"
         assert table["_in_degrees"] == np.array(False)
 
 

@@ -7,7 +7,7 @@ import pytest
 
 import torquesim as ts
 from torquesim.model.body import passive_energy, passive_torque
-from torquesim.solvers.rates import elbow_rates
+from torquesim.solvers.rates import chain_derivative
 
 
 def test_inertia_and_passive_torque_match_model_md(model):
@@ -33,7 +33,8 @@ def test_initial_state_matches_model_md(model):
 @pytest.mark.parametrize("angle_deg", [5.0, 10.0, 45.0, 90.0, 120.0])
 def test_initial_state_is_an_equilibrium(angle_deg):
     m = ts.default_model().replace(initial_angle=math.radians(angle_deg))
-    rates = elbow_rates(0.0, *m.initial_state().state, *m.pack())
+    chain = m.to_chain()
+    rates = chain_derivative(0.0, chain.initial_state().state, *chain.pack())
     assert rates[0] == 0.0
     assert abs(rates[1]) < 1e-12  # no angular acceleration
     assert abs(rates[2]) < 1e-9 and abs(rates[3]) < 1e-9  # both CEs isometric

@@ -71,7 +71,8 @@ def test_study_on_a_short_curl_measures_what_model_md_says(tmp_path):
     # the report and the table agree
     with open(tmp_path / "results.csv") as fh:
         table = list(csv.DictReader(fh))
-    assert len(table) == len(rows) and list(table[0]) == list(COLUMNS)
+    assert len(table) == len(rows)
+    assert list(table[0]) == [*COLUMNS, "max_error_deg_elbow"]  # the per-joint error
     report = (tmp_path / "report.html").read_text()
     for sentence in verdict_sentences(verdict(rows), list(dict.fromkeys(
             r["technique"] for r in rows))):
@@ -114,7 +115,8 @@ def test_sensitivity_to_se_stiffness_moves_tau_and_the_rk4_limit(tmp_path):
                                 steps=(2e-3, 5e-4, 2e-4, 1e-4), repeats=1)
     by = {(r["value"], r["technique"]): r for r in summary}
     soft, stiff = by[(150.0, "monolithic")], by[(3000.0, "monolithic")]
-    assert 5 < soft["min_tau_extensor_s"] / stiff["min_tau_extensor_s"] < 40
+    assert soft["min_tau_unit"] == stiff["min_tau_unit"] == "elbow_extensor"
+    assert 5 < soft["min_tau_s"] / stiff["min_tau_s"] < 40
     assert (stiff["stability_limit_s"] or 0.0) < soft["stability_limit_s"]
     assert by[(3000.0, "imex")]["stability_limit_s"] == 2e-3
     with open(tmp_path / "sensitivity.csv") as fh:
@@ -137,12 +139,16 @@ def test_vary_rejects_bad_specs(text):
 def test_vary_model_changes_only_the_named_parameter():
     from torquesim.study.sensitivity import vary_model
 
-    base = ts.default_model()
+    base = ts.default_model().to_chain()
     m = vary_model(base, "extensor_level", 0.3)
-    assert m.extensor_activation(np.array([0.0, 1.0, 2.9])) == pytest.approx([0.3] * 3)
-    assert m.flexor_activation == base.flexor_activation
-    assert vary_model(base, "dumbbell_mass", 2.0).body.dumbbell_mass == 2.0
+    flexor, extensor = m.units
+    assert extensor.activation(np.array([0.0, 1.0, 2.9])) == pytest.approx([0.3] * 3)
+    assert flexor == base.units[0]
+    assert vary_model(base, "dumbbell_mass", 2.0).segments[0].loads[0].mass == 2.0
     stiff = vary_model(base, "se_stiffness", 900.0)
-    assert stiff.flexor.se_stiffness == stiff.extensor.se_stiffness == 900.0
+    assert [u.parameters.se_stiffness for u in stiff.units] == [900.0, 900.0]
     with pytest.raises(ts.ModelError, match="extensor_level=1"):
         vary_model(base, "extensor_level", 1.0)  # the flexor cannot hold the start
+    arm = ts.load_model("builtin:arm-raise")
+    heavy = vary_model(arm, "extensor_level", 0.2)
+    assert [u.activation.initial_level for u in heavy.units if u.direction == -1] == [0.2, 0.2]

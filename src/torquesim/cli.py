@@ -49,7 +49,8 @@ def _check_output(path: str | None, suffixes, option: str) -> None:
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="torquesim")
 def cli():
-    """torquesim: torque-driven simulation of an elbow dumbbell curl.
+    """torquesim: torque-driven simulation of planar chains (default: an elbow dumbbell
+    curl) with Hill-type torque generators.
 
     Compares the partitioned and monolithic solution of the body and muscle equations.
     SI units throughout; angles in radians in files, degrees in summaries.
@@ -57,8 +58,9 @@ def cli():
 
 
 @cli.command()
-@click.option("--model", "model_path", type=click.Path(dir_okay=False),
-              help="Model TOML file (default: the built-in 5 kg curl; see 'torquesim model').")
+@click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
+              help="Model: a TOML file or a preset builtin:elbow-curl|knee-extension|arm-raise "
+                   "(see 'torquesim model').")
 @click.option("--method", type=click.Choice(["monolithic", "partitioned", "imex", "reference"]),
               default="monolithic", show_default=True,
               help="monolithic: one RK4 on all equations; partitioned: each part its own RK4, "
@@ -77,12 +79,11 @@ def cli():
 def simulate(model_path, method, step, duration, out_path, plot_path):
     """Simulate the model and print a summary (or write --out / --plot)."""
     from .io.model_file import load_model
-    from .model import default_model
     from .solvers import simulate as run
 
     _check_output(out_path, (".csv", ".sto", ".mot"), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
-    model = load_model(model_path) if model_path else default_model()
+    model = load_model(model_path)
     result = run(model, method, step, duration=duration)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
@@ -92,14 +93,20 @@ def simulate(model_path, method, step, duration, out_path, plot_path):
         from .plots import plot_result, save_figure
 
         save_figure(plot_result(result), plot_path)
-    peak, t_peak = result.peak()
     lines = [
+        f"model         {result.model.name} ({result.model.n_joints} joint"
+        f"{'s' if result.model.n_joints > 1 else ''}, {result.model.n_units} units)",
         f"method        {result.method}"
         + (f", step {result.step * 1e3:g} ms" if result.step else
            f", rtol {result.settings['rtol']:g}"),
         f"duration      {result.time[-1]:g} s",
-        f"peak angle    {math.degrees(peak):.4f} deg at t = {t_peak:.4f} s",
-        f"final angle   {math.degrees(result.theta[-1]):.4f} deg",
+    ]
+    for joint in result.model.joints:
+        peak, t_peak = result.peak(joint.name)
+        lines.append(f"{joint.coordinate:13s} peak {math.degrees(peak):.4f} deg at t = "
+                     f"{t_peak:.4f} s, final {math.degrees(result.angle(joint.name)[-1]):.4f} "
+                     "deg")
+    lines += [
         f"steps         {result.cost.steps if result.cost.steps >= 0 else 'adaptive'}",
         f"rhs evals     body {result.cost.rhs_body}, muscle {result.cost.rhs_muscle}",
         f"wall time     {result.cost.wall_time * 1e3:.1f} ms",
@@ -118,17 +125,18 @@ def simulate(model_path, method, step, duration, out_path, plot_path):
 
 
 @cli.command()
+@click.argument("name", default="elbow-curl")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False), required=True,
               help="Where to write the model TOML.")
-@click.option("--model", "model_path", type=click.Path(dir_okay=False),
-              help="Start from this model file instead of the built-in default.")
-def model(out_path, model_path):
-    """Write the default model (or a checked copy of --model) as an editable TOML file."""
+def model(name, out_path):
+    """Write a model as an editable TOML file: a preset (elbow-curl, knee-extension,
+    arm-raise; builtin: prefix optional) or a checked, rewritten copy of a model file."""
     from .io.model_file import load_model, save_model
-    from .model import default_model
+    from .model.presets import PREFIX, PRESETS
 
     _check_output(out_path, (".toml",), "--out")
-    save_model(load_model(model_path) if model_path else default_model(), out_path)
+    source = PREFIX + name if name in PRESETS else name
+    save_model(load_model(source), out_path)
     click.echo(f"wrote {out_path}")
 
 
@@ -144,8 +152,8 @@ def _parse_steps(text: str) -> tuple[float, ...]:
 
 
 @cli.command()
-@click.option("--model", "model_path", type=click.Path(dir_okay=False),
-              help="Model TOML file (default: the built-in curl).")
+@click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
+              help="Model TOML file or builtin:NAME preset.")
 @click.option("--steps", default="20,10,5,2,1,0.5,0.2,0.1,0.05", show_default=True,
               help="Fixed steps to try, in ms, comma-separated; each must divide the duration.")
 @click.option("--repeats", type=click.IntRange(1, 50), default=3, show_default=True,
@@ -161,12 +169,11 @@ def compare(model_path, steps, repeats, out_dir, vary):
     """Every technique over a range of steps against the reference: accuracy, order,
     stability and cost, and the verdict."""
     from .io.model_file import load_model
-    from .model import default_model
     from .solvers.simulate import step_count
     from .study.compare import verdict, verdict_sentences
     from .study.outputs import write_study
 
-    model = load_model(model_path) if model_path else default_model()
+    model = load_model(model_path)
     values = _parse_steps(steps)
     for h in values:
         step_count(model.duration, h, "--steps")
@@ -180,7 +187,7 @@ def compare(model_path, steps, repeats, out_dir, vary):
         name, vary_values = parse_vary(vary)
         summary = write_sensitivity(out_dir, model, name, vary_values, steps=values,
                                     repeats=repeats, progress=progress,
-                                    model_source=model_path or "builtin")
+                                    model_source=model_path)
         for value in vary_values:
             picks = [r for r in summary if r["value"] == value]
             smallest = min(values) * 1e3
@@ -196,7 +203,7 @@ def compare(model_path, steps, repeats, out_dir, vary):
         return
 
     rows, _, smooth = write_study(out_dir, model, steps=values, repeats=repeats,
-                                  progress=progress, model_source=model_path or "builtin")
+                                  progress=progress, model_source=model_path)
     names = list(dict.fromkeys(r["technique"] for r in rows))
     click.echo("\n".join(verdict_sentences(verdict(rows), names)))
     click.echo(f"wrote {out_dir}/results.csv, report.html, convergence.png, "
@@ -229,8 +236,9 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
                                "or the only one whose name contains 'elbow').")
 @click.option("--units", type=click.Choice(["deg", "rad"]),
               help="Units of the target angle (CSV default deg; .mot/.sto: inDegrees).")
-@click.option("--model", "model_path", type=click.Path(dir_okay=False),
-              help="Model TOML whose body and torque generators are used (default built-in).")
+@click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
+              help="Model whose body and torque generators are used: the one-joint elbow "
+                   "(builtin:elbow-curl or an elbow TOML); chains cannot be fitted yet.")
 @click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
               default="imex", show_default=True,
               help="Technique inside the fit. Explicit RK4 (monolithic, partitioned) needs "
@@ -299,7 +307,9 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
     settings = SearchSettings(seed=seed, generations=generations,
                               population_per_parameter=population, polish_simulations=polish,
                               max_time=max_time)
-    base = load_model(model_path) if model_path else None
+    from .model import ElbowModel
+
+    base = ElbowModel.from_chain(load_model(model_path), "torquesim fit")
     problem = FitProblem(target, space, base, method, step, weight_velocity, weight_end)
     checkpoint = out / CHECKPOINT_FILE
     state = None

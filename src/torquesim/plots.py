@@ -5,47 +5,60 @@ from __future__ import annotations
 import numpy as np
 
 
-def _figure(nrows: int, height: float):
+def plot_result(result, *, target=None):
+    """Per joint (one row each): the joint angle (deg), the torques of its units and its net
+    muscle torque (N·m), and its units' activations.
+
+    ``target`` is an optional (time, angle rad) pair drawn over the first joint's angle, or a
+    dict joint name → (time, angle rad).
+    """
+    cols = result.columns()
+    model = result.model
+    t = cols["time"]
+    n = model.n_joints
+    fig, axes = _figure_grid(n, 3, (13.0, 2.9 * n + 0.8))
+    targets = target if isinstance(target, dict) else (
+        {model.joints[0].name: target} if target is not None else {})
+    for row, joint in enumerate(model.joints):
+        ax_angle, ax_torque, ax_act = axes[row]
+        ax_angle.plot(t, np.degrees(cols[joint.coordinate]), color="k",
+                      label=f"simulated ({result.method})")
+        if joint.name in targets:
+            tt, angle = targets[joint.name]
+            ax_angle.plot(tt, np.degrees(angle), "--", color="tab:red", label="target")
+        ax_angle.set_ylabel(f"{joint.coordinate} (deg)")
+        ax_angle.legend(loc="best", fontsize="small")
+        units = [u for u in model.units if u.joint == joint.name]
+        for u in units:
+            ax_torque.plot(t, cols[f"torque_{u.name}"], label=u.name)
+            ax_act.plot(t, cols[f"activation_{u.name}"], label=u.name)
+        ax_torque.plot(t, cols[f"torque_net_{joint.name}"], color="k", lw=1,
+                       label="net (flexion +)")
+        ax_torque.set_ylabel(f"{joint.name} torque (N·m)")
+        ax_torque.legend(loc="best", fontsize="small")
+        ax_act.set_ylim(0.0, 1.05)
+        ax_act.set_ylabel("activation")
+        ax_act.legend(loc="best", fontsize="small")
+        for ax in axes[row]:
+            ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time (s)")
+    title = f"torquesim: {model.name}, {result.method}"
+    if result.step:
+        title += f", h = {result.step * 1e3:g} ms"
+    fig.suptitle(title)
+    return fig
+
+
+def _figure_grid(nrows: int, ncols: int, size):
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(nrows, 1, figsize=(8, height), sharex=True, constrained_layout=True)
-    return fig, np.atleast_1d(axes)
-
-
-def plot_result(result, *, target=None):
-    """Elbow angle (deg), unit and net torques (N·m) and activations over time.
-
-    ``target`` is an optional (time, angle rad) pair drawn over the angle.
-    """
-    cols = result.columns()
-    t = cols["time"]
-    fig, (ax_angle, ax_torque, ax_act) = _figure(3, 8.0)
-    ax_angle.plot(t, np.degrees(cols["theta"]), color="k", label=f"simulated ({result.method})")
-    if target is not None:
-        ax_angle.plot(target[0], np.degrees(target[1]), "--", color="tab:red", label="target")
-    ax_angle.set_ylabel("elbow flexion (deg)")
-    ax_angle.legend(loc="best", fontsize="small")
-    ax_torque.plot(t, cols["torque_flexor"], color="tab:blue", label="flexor")
-    ax_torque.plot(t, cols["torque_extensor"], color="tab:orange", label="extensor")
-    ax_torque.plot(t, cols["torque_net"], color="k", lw=1, label="net (flexion +)")
-    ax_torque.set_ylabel("torque (N·m)")
-    ax_torque.legend(loc="best", fontsize="small")
-    ax_act.plot(t, cols["activation_flexor"], color="tab:blue", label="flexor")
-    ax_act.plot(t, cols["activation_extensor"], color="tab:orange", label="extensor")
-    ax_act.set_ylim(0.0, 1.05)
-    ax_act.set_ylabel("activation")
-    ax_act.set_xlabel("time (s)")
-    ax_act.legend(loc="best", fontsize="small")
-    for ax in (ax_angle, ax_torque, ax_act):
-        ax.grid(alpha=0.3)
-    title = f"torquesim: {result.method}"
-    if result.step:
-        title += f", h = {result.step * 1e3:g} ms"
-    fig.suptitle(title)
-    return fig
+    fig, axes = plt.subplots(nrows, ncols, figsize=size, sharex=True, squeeze=False,
+                             constrained_layout=True)
+    return fig, axes
 
 
 def save_figure(fig, path) -> None:

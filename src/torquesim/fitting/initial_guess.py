@@ -16,7 +16,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..model.activation import activation
-from ..model.body import angular_acceleration
+from ..model.body import single_segment_acceleration
 from ..model.elbow import ElbowModel
 from ..model.torque_generator import ce_torque_velocity, torque_angle
 from .objective import PROFILE_SIZE, pack_profile
@@ -30,9 +30,10 @@ def required_torque(model: ElbowModel, target: Target, spacing: float = 0.005):
     spline = target.smoothed()
     t = np.linspace(0.0, target.duration, int(round(target.duration / spacing)) + 1)
     theta, omega, alpha = spline(t), spline.derivative(1)(t), spline.derivative(2)(t)
-    b = model.body.to_array()
+    chain = model.to_chain()
+    seg, joints = chain.segment_array(), chain.joint_array().ravel()
     inertia = model.body.elbow_inertia
-    free = np.array([angular_acceleration(x, 0.0, b) for x in theta])
+    free = np.array([single_segment_acceleration(x, 0.0, seg, joints) for x in theta])
     return t, theta, omega, inertia * (alpha - free)
 
 

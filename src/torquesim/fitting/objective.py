@@ -13,7 +13,6 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..model.torque_generator import RK4_STABILITY_LIMIT
 from ..solvers import fixed_step as fs
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
@@ -78,38 +77,39 @@ def score_motion(theta, omega, target_theta, target_omega, weight_velocity, weig
 
 
 @njit(cache=True, error_model="numpy")
-def simulate_candidate(x, method, coupling, y0, step, n_steps, b, pf, pe, level_f, level_e,
-                       explicit_muscles, times, theta_out, omega_out):
-    """Simulate the 18-vector ``x``; fill θ, ω at ``times``. Returns True if the run is
-    usable (finite, not diverged, within the RK4 stability limit when explicit)."""
-    af = np.empty(PROFILE_SIZE)
-    ae = np.empty(PROFILE_SIZE)
-    pack_profile(x, 0, level_f, af)
-    pack_profile(x, PER_UNIT, level_e, ae)
+def simulate_candidate(x, method, coupling, y0, step, n_steps, seg, joints, units, level_f,
+                       level_e, explicit_muscles, times, theta_out, omega_out):
+    """Simulate the 18-vector ``x`` on the elbow chain (packed ``seg``, ``joints``, ``units``:
+    flexor then extensor); fill θ, ω at ``times``. Returns True if the run is usable (finite,
+    not diverged, within the RK4 stability limit when explicit)."""
+    profiles = np.empty((2, PROFILE_SIZE))
+    pack_profile(x, 0, level_f, profiles[0])
+    pack_profile(x, PER_UNIT, level_e, profiles[1])
     states = np.empty((n_steps + 1, 4))
     stats = np.zeros(fs.STATS_SIZE)
     if method == MONOLITHIC:
-        fs.rk4_monolithic(y0, step, n_steps, b, pf, pe, af, ae, states, stats)
+        fs.rk4_monolithic(y0, step, n_steps, seg, joints, units, profiles, states, stats)
     else:
-        fs.rk4_partitioned(y0, step, n_steps, b, pf, pe, af, ae, coupling, states, stats)
+        fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, coupling, states,
+                           stats)
     if stats[fs.STATUS] != fs.OK:
         return False
-    if explicit_muscles and stats[fs.WORST_RATIO] > RK4_STABILITY_LIMIT:
+    if explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
         return False
     sample_motion(states, step, times, theta_out, omega_out)
     return True
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def score_population(population, method, coupling, y0, step, n_steps, b, pf, pe, level_f,
-                     level_e, explicit_muscles, times, target_theta, target_omega,
+def score_population(population, method, coupling, y0, step, n_steps, seg, joints, units,
+                     level_f, level_e, explicit_muscles, times, target_theta, target_omega,
                      weight_velocity, weight_end, scores, failed):
     """Score every row of ``population`` (m × 18) in parallel threads."""
     for j in prange(population.shape[0]):
         theta = np.empty(times.shape[0])
         omega = np.empty(times.shape[0])
-        ok = simulate_candidate(population[j], method, coupling, y0, step, n_steps, b, pf, pe,
-                                level_f, level_e, explicit_muscles, times, theta, omega)
+        ok = simulate_candidate(population[j], method, coupling, y0, step, n_steps, seg, joints,
+                                units, level_f, level_e, explicit_muscles, times, theta, omega)
         if ok:
             scores[j], _ = score_motion(theta, omega, target_theta, target_omega,
                                         weight_velocity, weight_end)

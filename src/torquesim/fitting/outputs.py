@@ -78,6 +78,7 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         "warnings": warnings,
         "machine": {"python": platform.python_version(), "platform": platform.platform()},
         "_results": (fitted, reference),
+        "_x": outcome.x,
     }
 
 
@@ -94,8 +95,9 @@ def write_outputs(out_dir, problem: FitProblem, outcome: FitOutcome, summary: di
                "fitted_deg": np.degrees(np.interp(elapsed, fitted.time, fitted.theta)),
                "reference_deg": np.degrees(np.interp(elapsed, reference.time,
                                                      reference.theta))}
-    a_f, a_e = (fitted.model.flexor_activation(elapsed, problem.level_f),
-                fitted.model.extensor_activation(elapsed))
+    elbow = problem.model_for(summary["_x"])
+    a_f, a_e = (elbow.flexor_activation(elapsed, problem.level_f),
+                elbow.extensor_activation(elapsed))
     columns["activation_flexor"] = a_f
     columns["activation_extensor"] = a_e
     write_table(out / MOTION_FILE, columns)

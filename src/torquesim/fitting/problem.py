@@ -54,6 +54,8 @@ class FitProblem:
         check_range("weight_velocity", self.weight_velocity, 0.0, 1e3)
         check_range("weight_end", self.weight_end, 0.0, 1e3)
         base = self.base_model or default_model()
+        if not isinstance(base, ElbowModel):
+            base = ElbowModel.from_chain(base, "fit")
         self.requested_step = self.step
         self.step, self.n_steps = fit_step(self.target.duration, self.step)
         flexor, extensor = profiles(np.array(self.space.upper), self.space.extensor_rest)
@@ -69,8 +71,8 @@ class FitProblem:
         self.level_f, self.level_e = start.flexor_level, start.extensor_level
         self.coupling = {"imex": IMEX, "partitioned": Coupling(),
                          "monolithic": Coupling()}[self.method]
-        self.arrays = (self.model.body.to_array(), self.model.flexor.to_array(),
-                       self.model.extensor.to_array())
+        packed = self.model.to_chain().pack()
+        self.arrays = (packed.segments, packed.joints, packed.units)
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = self.target.angular_velocity()
 
@@ -83,10 +85,10 @@ class FitProblem:
         population = np.ascontiguousarray(np.atleast_2d(population), dtype=float)
         scores = np.empty(population.shape[0])
         failed = np.zeros(population.shape[0], dtype=np.bool_)
-        b, pf, pe = self.arrays
+        seg, joints, units = self.arrays
         obj.score_population(
             population, obj.MONOLITHIC if self.method == "monolithic" else obj.PARTITIONED,
-            self.coupling.to_array(), self.y0, self.step, self.n_steps, b, pf, pe,
+            self.coupling.to_array(), self.y0, self.step, self.n_steps, seg, joints, units,
             self.level_f, self.level_e, self.explicit_muscles, self.times, self.target.angle,
             self.target_omega, self.weight_velocity, self.weight_end, scores, failed)
         self.simulations += population.shape[0]

@@ -1,16 +1,38 @@
-"""Read and write a whole model as TOML.
+"""Read and write a model as TOML.
 
-Layout (every key optional; a missing key takes the built-in default, an unknown key is an
-error)::
+A chain model (docs/model-files.md)::
 
-    initial_angle = 0.174533     # rad
-    duration = 3.0               # s
-    [body]            # BodyParameters fields
-    [flexor]          # TorqueGeneratorUnit fields
-    [flexor.activation]
-    initial_level = "equilibrium"          # or a number in [0, 1]
-    ramps = [{ delay = 0.058, duration = 0.311, level = 0.556 }, ...]
-    [extensor] / [extensor.activation]     # the same
+    name = "arm-raise"
+    duration = 3.0           # s
+    gravity = 9.81           # m/s^2
+    base_angle = 0.0         # rad
+    notes = ["sources ..."]  # free text, kept on a round trip
+
+    [[segments]]             # proximal to distal; segment k hangs from joint k
+    name = "upper_arm"
+    mass = 1.978             # kg
+    com_distance = 0.1626    # m, from its proximal joint
+    inertia_about_joint = 0.0650  # kg m^2
+    length = 0.2817          # m, to the next joint
+    loads = [{ name = "dumbbell", mass = 2.0, distance = 0.337, inertia = 0.009 }]
+
+    [[joints]]               # one per segment, same order
+    name = "shoulder"
+    initial_angle = 0.1      # rad
+    endstop_torque = 1.0 ...
+
+    [[units]]
+    name = "shoulder_flexor"
+    joint = "shoulder"
+    direction = "flexor"     # or "extensor" (+1 / -1)
+    isometric_torque = 60.0 ...  # every TorqueGeneratorUnit field
+    [units.activation]
+    initial_level = "equilibrium"   # or a number in [0, 1]
+    ramps = [{ delay = 0.1, duration = 0.3, level = 0.5 }, ...]
+
+Every key is checked: an unknown or missing key, a wrong type or a value out of range is a
+:class:`~torquesim.errors.ModelError` naming it. The elbow files of torquesim 0.1 (``[body]``,
+``[flexor]``, ``[extensor]``) still load, as the one-segment chain they describe.
 """
 
 from __future__ import annotations
@@ -22,27 +44,29 @@ from pathlib import Path
 from ..errors import ModelError
 from ..model.activation import ActivationProfile, Ramp
 from ..model.body import BodyParameters
+from ..model.chain import ChainModel, Joint, PointLoad, Segment, Unit
 from ..model.elbow import ElbowModel
 from ..model.torque_generator import TorqueGeneratorUnit
 from .atomic import write_text_atomic
 
 EQUILIBRIUM = "equilibrium"
+DIRECTIONS = {"flexor": 1, "extensor": -1, 1: 1, -1: -1}
 
 #: One-line documentation written beside each key: unit and allowed range.
 FIELD_DOCS = {
-    "initial_angle": "rad, elbow flexion at t = 0 (0 = arm hanging straight). [-pi, pi]",
     "duration": "s, simulated time. (0, 600]",
     "gravity": "m/s^2. [0, inf)",
-    "segment_mass": "kg, forearm + hand (de Leva 1996). (0, inf)",
-    "segment_com_distance": "m, elbow to forearm+hand centre of mass. (0, inf)",
-    "segment_inertia": "kg m^2, forearm + hand about the elbow. (0, inf)",
-    "dumbbell_mass": "kg. [0, inf)",
-    "dumbbell_distance": "m, elbow to dumbbell centre. (0, inf)",
-    "dumbbell_inertia": "kg m^2, dumbbell about its own handle axis. [0, inf)",
-    "endstop_torque": "N m, passive end-stop scale k_p (0 = abstract's Eq. 1). [0, inf)",
+    "base_angle": "rad, first joint's zero direction from hanging down. [-pi, pi]",
+    "mass": "kg",
+    "com_distance": "m, proximal joint to centre of mass. [0, inf)",
+    "inertia_about_joint": "kg m^2, about the proximal joint, loads excluded",
+    "length": "m, proximal joint to the next joint. [0, inf)",
+    "initial_angle": "rad, 0 = straight/hanging, positive = flexion. [-pi, pi]",
+    "endstop_torque": "N m, passive end-stop scale k_p (0 = none). [0, inf)",
     "endstop_angle_scale": "rad, end-stop angular scale s_p. (0, inf)",
-    "endstop_lower_angle": "rad, theta_lo. [-pi, 2pi]",
-    "endstop_upper_angle": "rad, theta_hi (> theta_lo). [-pi, 2pi]",
+    "endstop_lower_angle": "rad, q_lo. [-pi, 2pi]",
+    "endstop_upper_angle": "rad, q_hi (> q_lo). [-pi, 2pi]",
+    "coordinate": "output column / OpenSim coordinate name",
     "isometric_torque": "N m, T0. (0, inf)",
     "eccentric_torque_max": "N m, T_max. (T0, inf)",
     "max_velocity": "rad/s, omega_max. (0, inf)",
@@ -56,6 +80,15 @@ FIELD_DOCS = {
     "eccentric_slope_ratio": "eccentric/concentric slope of T_omega at 0 (Yeadon 2006: 4.3)",
     "ce_damping": "N m s/rad, CE parallel damping beta (Millard 2013; 0 = abstract). [0, 1e4]",
 }
+SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads")
+LOAD_KEYS = ("name", "mass", "distance", "inertia")
+JOINT_KEYS = ("name", "initial_angle", "endstop_torque", "endstop_angle_scale",
+              "endstop_lower_angle", "endstop_upper_angle", "coordinate")
+UNIT_KEYS = ("name", "joint", "direction", "activation", *TorqueGeneratorUnit.field_names())
+TOP_KEYS = ("name", "duration", "gravity", "base_angle", "notes", "segments", "joints", "units")
+LEGACY_KEYS = ("initial_angle", "duration", "body", "flexor", "extensor")
+REQUIRED_UNIT_KEYS = tuple(k for k in TorqueGeneratorUnit.field_names()
+                           if k not in ("eccentric_slope_ratio", "ce_damping"))
 
 
 def _number(key: str, value) -> float:
@@ -64,17 +97,32 @@ def _number(key: str, value) -> float:
     return float(value)
 
 
+def _text(key: str, value) -> str:
+    if not isinstance(value, str):
+        raise ModelError(key, f"must be a string, got {value!r}")
+    return value
+
+
 def _table(key: str, value) -> dict:
     if not isinstance(value, dict):
         raise ModelError(key, "must be a table")
     return value
 
 
-def _check_keys(prefix: str, table: dict, allowed) -> None:
+def _array_of_tables(key: str, value) -> list:
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise ModelError(key, f"must be an array of tables ([[{key}]] entries)")
+    return value
+
+
+def _check_keys(prefix: str, table: dict, allowed, required=()) -> None:
     for key in table:
         if key not in allowed:
             name = f"{prefix}.{key}" if prefix else key
             raise ModelError(name, f"unknown key; allowed: {', '.join(sorted(allowed))}")
+    for key in required:
+        if key not in table:
+            raise ModelError(f"{prefix}.{key}" if prefix else key, "is missing")
 
 
 def _build(cls, prefix: str, table: dict, defaults: dict):
@@ -88,15 +136,19 @@ def _build(cls, prefix: str, table: dict, defaults: dict):
         raise exc.under(prefix) from None
 
 
-def _profile(prefix: str, table: dict, default: ActivationProfile) -> ActivationProfile:
+def _profile(prefix: str, table: dict, default: ActivationProfile | None) -> ActivationProfile:
     _check_keys(prefix, table, ("initial_level", "ramps"))
-    level = table.get("initial_level", default.initial_level
-                      if default.initial_level is not None else EQUILIBRIUM)
+    if default is None and "initial_level" not in table:
+        raise ModelError(f"{prefix}.initial_level", 'is missing; allowed "equilibrium" or a '
+                         "number in [0, 1]")
+    fallback = EQUILIBRIUM if default is None or default.initial_level is None \
+        else default.initial_level
+    level = table.get("initial_level", fallback)
     if level == EQUILIBRIUM:
         level = None
     else:
         level = _number(f"{prefix}.initial_level", level)
-    ramps = default.ramps
+    ramps = default.ramps if default is not None else ()
     if "ramps" in table:
         if not isinstance(table["ramps"], list):
             raise ModelError(f"{prefix}.ramps", "must be an array of {delay, duration, level}")
@@ -104,10 +156,8 @@ def _profile(prefix: str, table: dict, default: ActivationProfile) -> Activation
         for i, item in enumerate(table["ramps"]):
             name = f"{prefix}.ramps[{i}]"
             item = _table(name, item)
-            _check_keys(name, item, ("delay", "duration", "level"))
-            for key in ("delay", "duration", "level"):
-                if key not in item:
-                    raise ModelError(f"{name}.{key}", "is missing")
+            _check_keys(name, item, ("delay", "duration", "level"),
+                        ("delay", "duration", "level"))
             try:
                 ramps.append(Ramp(*(_number(f"{name}.{k}", item[k])
                                     for k in ("delay", "duration", "level"))))
@@ -119,10 +169,10 @@ def _profile(prefix: str, table: dict, default: ActivationProfile) -> Activation
         raise exc.under(prefix) from None
 
 
-def model_from_dict(data: dict) -> ElbowModel:
-    """Build and validate a model from the parsed TOML mapping (missing keys: defaults)."""
+def _legacy_elbow(data: dict) -> ElbowModel:
+    """An elbow model from the torquesim 0.1 layout (missing keys: MODEL.md defaults)."""
     default = ElbowModel()
-    _check_keys("", data, ("initial_angle", "duration", "body", "flexor", "extensor"))
+    _check_keys("", data, LEGACY_KEYS)
     body = _build(BodyParameters, "body", _table("body", data.get("body", {})),
                   default.body.as_dict())
     units, profiles = {}, {}
@@ -141,8 +191,94 @@ def model_from_dict(data: dict) -> ElbowModel:
                       extensor_activation=profiles["extensor"], **kwargs)
 
 
-def load_model(path) -> ElbowModel:
-    """Read a model TOML file; errors name the key and the allowed range."""
+def _segment(i: int, table: dict) -> Segment:
+    prefix = f"segments[{i}]"
+    _check_keys(prefix, table, SEGMENT_KEYS, ("name", "mass", "com_distance",
+                                              "inertia_about_joint"))
+    loads = []
+    raw_loads = table.get("loads", [])
+    for k, load in enumerate(_array_of_tables(f"{prefix}.loads", raw_loads)):
+        where = f"{prefix}.loads[{k}]"
+        _check_keys(where, load, LOAD_KEYS, ("name", "mass", "distance"))
+        try:
+            loads.append(PointLoad(_text(f"{where}.name", load["name"]),
+                                   *(_number(f"{where}.{key}", load[key])
+                                     for key in ("mass", "distance") if key in load),
+                                   _number(f"{where}.inertia", load.get("inertia", 0.0))))
+        except ModelError as exc:
+            raise exc.under(where) from None
+    try:
+        return Segment(_text(f"{prefix}.name", table["name"]),
+                       _number(f"{prefix}.mass", table["mass"]),
+                       _number(f"{prefix}.com_distance", table["com_distance"]),
+                       _number(f"{prefix}.inertia_about_joint", table["inertia_about_joint"]),
+                       _number(f"{prefix}.length", table.get("length", 0.0)), tuple(loads))
+    except ModelError as exc:
+        raise exc.under(prefix) from None
+
+
+def _joint(i: int, table: dict) -> Joint:
+    prefix = f"joints[{i}]"
+    _check_keys(prefix, table, JOINT_KEYS, ("name", "initial_angle"))
+    values = {key: (_text if key in ("name", "coordinate") else _number)(f"{prefix}.{key}",
+                                                                         value)
+              for key, value in table.items()}
+    try:
+        return Joint(**values)
+    except ModelError as exc:
+        raise exc.under(prefix) from None
+
+
+def _unit(i: int, table: dict) -> Unit:
+    prefix = f"units[{i}]"
+    _check_keys(prefix, table, UNIT_KEYS, ("name", "joint", "direction", "activation",
+                                           *REQUIRED_UNIT_KEYS))
+    direction = table["direction"]
+    if isinstance(direction, bool) or direction not in DIRECTIONS:
+        raise ModelError(f"{prefix}.direction", f"{direction!r}; allowed \"flexor\", "
+                         "\"extensor\", 1 or -1")
+    params = {k: v for k, v in table.items() if k in TorqueGeneratorUnit.field_names()}
+    parameters = _build(TorqueGeneratorUnit, prefix, params,
+                        {k: params.get(k) for k in TorqueGeneratorUnit.field_names()
+                         if k in params or k in REQUIRED_UNIT_KEYS})
+    activation = _profile(f"{prefix}.activation",
+                          _table(f"{prefix}.activation", table["activation"]), None)
+    try:
+        return Unit(_text(f"{prefix}.name", table["name"]), _text(f"{prefix}.joint",
+                                                                 table["joint"]),
+                    DIRECTIONS[direction], parameters, activation)
+    except ModelError as exc:
+        raise exc.under(prefix) from None
+
+
+def model_from_dict(data: dict) -> ChainModel:
+    """Build and validate a model from the parsed TOML mapping (chain or 0.1 elbow layout)."""
+    if not any(key in data for key in ("segments", "joints", "units")) and \
+            all(key in LEGACY_KEYS for key in data):
+        return _legacy_elbow(data).to_chain()
+    _check_keys("", data, TOP_KEYS, ("segments", "joints", "units"))
+    segments = [_segment(i, t) for i, t in enumerate(_array_of_tables("segments",
+                                                                        data["segments"]))]
+    joints = [_joint(i, t) for i, t in enumerate(_array_of_tables("joints", data["joints"]))]
+    units = [_unit(i, t) for i, t in enumerate(_array_of_tables("units", data["units"]))]
+    notes = data.get("notes", [])
+    if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
+        raise ModelError("notes", "must be an array of strings")
+    kwargs = {key: _number(key, data[key]) for key in ("duration", "gravity", "base_angle")
+              if key in data}
+    return ChainModel(name=_text("name", data.get("name", "model")), segments=tuple(segments),
+                      joints=tuple(joints), units=tuple(units), notes=tuple(notes), **kwargs)
+
+
+def load_model(path) -> ChainModel:
+    """Read a model TOML file, or a preset named ``builtin:NAME``; errors name the key and the
+    allowed range."""
+    from ..model.presets import is_preset, preset
+
+    if is_preset(path):
+        return preset(str(path))
+    if not isinstance(path, (str, Path)):
+        raise TypeError(f"path: expected a file name, got {type(path).__name__}")
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -157,32 +293,54 @@ def load_model(path) -> ElbowModel:
     return model_from_dict(data)
 
 
-def _value(x: float) -> str:
+def _value(x) -> str:
+    if isinstance(x, str):
+        return '"' + x.replace("\\", "\\\\").replace('"', '\\"') + '"'
     return repr(float(x))
 
 
-def _line(key: str, value: float) -> str:
+def _line(key: str, value) -> str:
     doc = FIELD_DOCS.get(key)
     return f"{key} = {_value(value)}" + (f"  # {doc}" if doc else "")
 
 
-def model_to_toml(model: ElbowModel) -> str:
-    """The model as commented TOML (exact float round trip)."""
-    lines = ["# torquesim model. SI units, angles in radians. Missing keys take the defaults.",
-             _line("initial_angle", model.initial_angle)
-             + f" (= {math.degrees(model.initial_angle):.4g} deg)",
-             _line("duration", model.duration), "", "[body]"]
-    lines += [_line(k, v) for k, v in model.body.as_dict().items()]
-    for name in ("flexor", "extensor"):
-        lines += ["", f"[{name}]"]
-        lines += [_line(k, v) for k, v in getattr(model, name).as_dict().items()]
-        profile = getattr(model, f"{name}_activation")
-        lines += ["", f"[{name}.activation]",
+def model_to_toml(model) -> str:
+    """The model (chain or elbow) as commented TOML in the chain layout (exact float round
+    trip)."""
+    from ..model.chain import as_chain
+
+    m = as_chain(model)
+    lines = ["# torquesim model: a planar chain. SI units, angles in radians.",
+             "# Format: docs/model-files.md. Sources of the values: the notes below."]
+    lines += [f"# {note}" for note in m.notes]
+    lines += [f"name = {_value(m.name)}", _line("duration", m.duration),
+              _line("gravity", m.gravity), _line("base_angle", m.base_angle)]
+    if m.notes:
+        lines.append("notes = [" + ", ".join(_value(n) for n in m.notes) + "]")
+    for seg in m.segments:
+        lines += ["", "[[segments]]", f"name = {_value(seg.name)}"]
+        lines += [_line(k, getattr(seg, k)) for k in SEGMENT_KEYS[1:5]]
+        loads = ", ".join(f"{{ name = {_value(ld.name)}, mass = {_value(ld.mass)}, distance = "
+                          f"{_value(ld.distance)}, inertia = {_value(ld.inertia)} }}"
+                          for ld in seg.loads)
+        lines.append(f"loads = [{loads}]  # point loads on the segment axis (kg, m, kg m^2)")
+    for joint in m.joints:
+        lines += ["", "[[joints]]", f"name = {_value(joint.name)}",
+                  _line("initial_angle", joint.initial_angle)
+                  + f" (= {math.degrees(joint.initial_angle):.4g} deg)"]
+        lines += [_line(k, getattr(joint, k)) for k in JOINT_KEYS[2:]]
+    for unit in m.units:
+        lines += ["", "[[units]]", f"name = {_value(unit.name)}",
+                  f"joint = {_value(unit.joint)}",
+                  f"direction = {_value('flexor' if unit.direction == 1 else 'extensor')}"]
+        lines += [_line(k, v) for k, v in unit.parameters.as_dict().items()]
+        profile = unit.activation
+        lines += ["[units.activation]",
                   "# a(t): initial level, then quintic ramps (delay after the previous ramp "
                   "ends [s], duration [s], new level [0, 1])"]
         level = profile.initial_level
-        lines.append("initial_level = " + ('"equilibrium"  # from static equilibrium at '
-                                           'initial_angle' if level is None else _value(level)))
+        lines.append("initial_level = " + ('"equilibrium"  # solved so the chain starts at '
+                                           'rest' if level is None else _value(level)))
         lines.append("ramps = [")
         lines += [f"    {{ delay = {_value(r.delay)}, duration = {_value(r.duration)}, "
                   f"level = {_value(r.level)} }}," for r in profile.ramps]
@@ -190,6 +348,6 @@ def model_to_toml(model: ElbowModel) -> str:
     return "\n".join(lines) + "\n"
 
 
-def save_model(model: ElbowModel, path) -> Path:
+def save_model(model, path) -> Path:
     """Write the model TOML atomically."""
     return write_text_atomic(path, model_to_toml(model))

@@ -30,15 +30,15 @@ from scipy.optimize import brentq
 from ..errors import ModelError, check_range
 from .activation import ActivationProfile
 from .body import (
-    SEG_GRAVITY_COLUMN,
-    SEG_INERTIA_COLUMN,
-    SEG_LENGTH_COLUMN,
-    SEG_MOMENT_COLUMN,
     ENDSTOP_HIGH,
     ENDSTOP_LOW,
     ENDSTOP_SCALE,
     ENDSTOP_TORQUE,
     JOINT_ROW_SIZE,
+    SEG_GRAVITY_COLUMN,
+    SEG_INERTIA_COLUMN,
+    SEG_LENGTH_COLUMN,
+    SEG_MOMENT_COLUMN,
     ZERO_OFFSET,
     passive_torque,
 )
@@ -301,6 +301,8 @@ class ChainModel:
         Bounds [-π, π].
     duration : float
         Simulated time, s. Default 3.0. Bounds (0, 600].
+    notes : tuple of str
+        Free text kept with the model (the presets cite their sources here).
     """
 
     name: str
@@ -310,10 +312,12 @@ class ChainModel:
     gravity: float = 9.81
     base_angle: float = 0.0
     duration: float = 3.0
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        _check_name("name", self.name.replace("-", "_"))
-        for key in ("segments", "joints", "units"):
+        _check_name("name", self.name.replace("-", "_") if isinstance(self.name, str)
+                    else self.name)
+        for key in ("segments", "joints", "units", "notes"):
             object.__setattr__(self, key, tuple(getattr(self, key)))
         check_range("gravity", self.gravity, 0.0, unit="m/s^2")
         check_range("base_angle", self.base_angle, -math.pi, math.pi, unit="rad")

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
+
 from ..errors import ModelError, check_range
 from .activation import ActivationProfile, Ramp
 from .body import BodyParameters
@@ -98,9 +99,45 @@ class ElbowModel:
         return InitialState(start.state, float(start.levels[0]), float(start.levels[1]),
                             float(start.torques[0]), float(start.torques[1]))
 
+    @classmethod
+    def from_chain(cls, chain, purpose: str = "this command") -> ElbowModel:
+        """The elbow parametrisation of a one-segment chain with one flexor and one extensor
+        unit and at most one point load; anything else is a :class:`ModelError` saying that
+        ``purpose`` needs such a model."""
+        units = chain.units
+        problem = None
+        if chain.n_joints != 1:
+            problem = f"it has {chain.n_joints} joints"
+        elif len(units) != 2 or sorted(u.direction for u in units) != [-1, 1]:
+            problem = "its joint does not have exactly one flexor and one extensor unit"
+        elif len(chain.segments[0].loads) > 1:
+            problem = "its segment carries more than one point load"
+        elif chain.base_angle != 0.0:
+            problem = "its base angle is not 0"
+        if problem:
+            raise ModelError("model", f"{purpose} works on the one-joint elbow model only and "
+                             f"{chain.name!r} does not fit: {problem}; allowed: a model "
+                             "like builtin:elbow-curl (fitting chains is not available yet)")
+        seg, joint = chain.segments[0], chain.joints[0]
+        flexor = next(u for u in units if u.direction == 1)
+        extensor = next(u for u in units if u.direction == -1)
+        load = seg.loads[0] if seg.loads else None
+        body = BodyParameters(
+            gravity=chain.gravity, segment_mass=seg.mass,
+            segment_com_distance=seg.com_distance, segment_inertia=seg.inertia_about_joint,
+            dumbbell_mass=load.mass if load else 0.0,
+            dumbbell_distance=(load.distance if load and load.distance > 0 else
+                               max(seg.length, seg.com_distance, 1e-3)),
+            dumbbell_inertia=load.inertia if load else 0.0,
+            endstop_torque=joint.endstop_torque, endstop_angle_scale=joint.endstop_angle_scale,
+            endstop_lower_angle=joint.endstop_lower_angle,
+            endstop_upper_angle=joint.endstop_upper_angle)
+        return cls(body, flexor.parameters, extensor.parameters, flexor.activation,
+                   extensor.activation, joint.initial_angle, chain.duration)
+
     def to_chain(self, check: bool = True):
         """This elbow as a one-segment :class:`~torquesim.model.chain.ChainModel` (joint
-        ``elbow``, units ``flexor`` and ``extensor``, the dumbbell a point load)."""
+        ``elbow``, units ``elbow_flexor`` and ``elbow_extensor``, the dumbbell a point load)."""
         from .chain import ChainModel, Joint, PointLoad, Segment, Unit
 
         b = self.body
@@ -110,14 +147,14 @@ class ElbowModel:
                                      b.dumbbell_inertia),))
         joint = Joint("elbow", self.initial_angle, b.endstop_torque, b.endstop_angle_scale,
                       b.endstop_lower_angle, b.endstop_upper_angle)
-        units = (Unit("flexor", "elbow", 1, self.flexor, self.flexor_activation),
-                 Unit("extensor", "elbow", -1, self.extensor, self.extensor_activation))
+        units = (Unit("elbow_flexor", "elbow", 1, self.flexor, self.flexor_activation),
+                 Unit("elbow_extensor", "elbow", -1, self.extensor, self.extensor_activation))
         fields = dict(name="elbow_curl", segments=(segment,), joints=(joint,), units=units,
                       gravity=b.gravity, duration=self.duration)
         if check:
             return ChainModel(**fields)
         chain = object.__new__(ChainModel)
-        for key, value in dict(base_angle=0.0, **fields).items():
+        for key, value in dict(base_angle=0.0, notes=(), **fields).items():
             object.__setattr__(chain, key, value)
         return chain
 

@@ -208,7 +208,8 @@ def differential_activation(omega, p, o=0):
 
     Yeadon et al. (2006), form of Forrester et al. (2011).
     """
-    return p[o + A_MIN] + (1.0 - p[o + A_MIN]) / (1.0 + math.exp(-(omega - p[o + OMEGA_1]) / p[o + OMEGA_R]))
+    return p[o + A_MIN] + (1.0 - p[o + A_MIN]) / (1.0 + math.exp(-(omega - p[o + OMEGA_1])
+                                                                   / p[o + OMEGA_R]))
 
 
 @njit(cache=True, error_model="numpy")

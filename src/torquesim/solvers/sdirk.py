@@ -22,7 +22,8 @@ from ..model.torque_generator import (
 
 
 @njit(cache=True, error_model="numpy")
-def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity_activation, p, o=0):
+def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity_activation, p,
+                       o=0):
     """Residual G(w) and dG/dw of the implicit CE equation (see unit_implicit_ce_velocity)."""
     x = theta_cc_known + sign * gamma_h * w
     t_theta = torque_angle(x, p, o)
@@ -31,7 +32,8 @@ def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity
     h_value = ce_torque_velocity(w, p, o)
     g = capacity_activation * t_theta * h_value - p[o + CE_DAMPING] * w
     slope = capacity_activation * (t_theta_slope * h_value
-                                   + t_theta * ce_torque_velocity_slope(w, p, o)) - p[o + CE_DAMPING]
+                                   + t_theta * ce_torque_velocity_slope(w, p, o)) \
+        - p[o + CE_DAMPING]
     if stretch > 0.0:
         g -= p[o + K_SE] * stretch
         slope -= p[o + K_SE] * gamma_h

@@ -41,12 +41,14 @@ def smooth_case_orders(progress=None) -> dict[str, float]:
 
 
 def rows_to_csv(rows) -> str:
+    """The study table as CSV: :data:`COLUMNS` then the per-joint error columns."""
+    columns = list(rows[0]) if rows else list(COLUMNS)
     buf = io.StringIO()
     writer = csv.writer(buf)
-    writer.writerow(COLUMNS)
+    writer.writerow(columns)
     for r in rows:
         writer.writerow(["" if r[c] is None else (repr(r[c]) if isinstance(r[c], float)
-                                                  else r[c]) for c in COLUMNS])
+                                                  else r[c]) for c in columns])
     return buf.getvalue()
 
 
@@ -57,7 +59,9 @@ def write_study(directory, model, *, steps, repeats=3, progress=None, model_sour
     ``smooth`` (orders on the smooth case) is measured unless given."""
     from .. import __version__
     from ..io.model_file import model_to_toml
+    from ..model.chain import as_chain
 
+    model = as_chain(model)
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     rows, reference = run_study(model, steps=steps, repeats=repeats, progress=progress)

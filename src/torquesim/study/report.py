@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from ..model.torque_generator import RK4_STABILITY_LIMIT
+from ..solvers.fixed_step import RK4_STABILITY_LIMIT
 from .compare import (
     ACCURACY_TARGETS_DEG,
     COLUMNS,
@@ -77,13 +77,16 @@ def plot_time_constants(reference):
     """Each unit's CE time constant over the motion, with the RK4 limit it sets."""
     import matplotlib.pyplot as plt
 
-    tau_f, tau_e = reference.time_constants()
+    taus = reference.time_constants()
     fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, constrained_layout=True)
-    ax0.plot(reference.time, np.degrees(reference.theta), color="k")
-    ax0.set_ylabel("elbow flexion (deg)")
-    ax1.semilogy(reference.time, tau_f * 1e3, label="flexor τ")
-    ax1.semilogy(reference.time, tau_e * 1e3, label="extensor τ")
-    limit = RK4_STABILITY_LIMIT * np.minimum(tau_f, tau_e)
+    for joint in reference.model.joints:
+        ax0.plot(reference.time, np.degrees(reference.angle(joint.name)),
+                 label=joint.coordinate)
+    ax0.set_ylabel("joint angle (deg)")
+    ax0.legend(fontsize="small")
+    for name, tau in taus.items():
+        ax1.semilogy(reference.time, tau * 1e3, label=f"{name} τ")
+    limit = RK4_STABILITY_LIMIT * np.min(np.array(list(taus.values())), axis=0)
     ax1.semilogy(reference.time, limit * 1e3, "k:",
                  label="largest stable RK4 step 2.785·min τ")
     ax1.set_ylabel("ms")
@@ -167,9 +170,10 @@ def render_report(rows, reference, *, smooth_orders=None, title="torquesim compa
            "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;"
            "padding:2px 5px;text-align:right}th{background:#eee}</style></head><body>",
            f"<h1>{html.escape(title)}</h1>",
-           "<p>Every technique against a Radau reference (rtol 1e-11). Error = max |θ − "
-           "θ<sub>ref</sub>| over the motion. Cost = median wall time after compilation and "
-           "right-hand-side evaluations per part.</p>",
+           "<p>Every technique against a Radau reference (rtol 1e-11). Error = max |q − "
+           "q<sub>ref</sub>| over the motion and over the joints (the table also gives it per "
+           "joint). Cost = median wall time after compilation and right-hand-side evaluations "
+           "per part.</p>",
            "<h2>Verdict</h2><ul>"]
     out += [f"<li>{html.escape(s)}</li>" for s in sentences]
     out.append("</ul>")
@@ -191,10 +195,11 @@ def render_report(rows, reference, *, smooth_orders=None, title="torquesim compa
     out.append("<h2>Stiffness over the motion</h2><img src='data:image/png;base64,"
                f"{img['time_constants']}'>")
     out.append(EXPLANATION)
-    out.append("<h2>All runs</h2><table><tr>" + "".join(f"<th>{c}</th>" for c in COLUMNS)
+    columns = list(rows[0]) if rows else list(COLUMNS)
+    out.append("<h2>All runs</h2><table><tr>" + "".join(f"<th>{c}</th>" for c in columns)
                + "</tr>")
     for r in rows:
-        out.append("<tr>" + "".join(f"<td>{_fmt(r[c])}</td>" for c in COLUMNS) + "</tr>")
+        out.append("<tr>" + "".join(f"<td>{_fmt(r[c])}</td>" for c in columns) + "</tr>")
     out.append("</table>")
     if settings:
         out.append("<h2>Settings</h2><pre>" + html.escape(str(settings)) + "</pre>")

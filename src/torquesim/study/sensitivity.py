@@ -20,23 +20,25 @@ import numpy as np
 from ..errors import ModelError
 from ..io.atomic import write_atomic, write_text_atomic
 from ..model.activation import ActivationProfile
-from ..model.elbow import ElbowModel
-from ..model.torque_generator import RK4_STABILITY_LIMIT
+from ..model.chain import ChainModel, as_chain
+from ..solvers.fixed_step import RK4_STABILITY_LIMIT
 from .compare import ACCURACY_TARGETS_DEG, stability_limit, verdict
 from .outputs import smooth_case_orders, write_study
 from .report import figure_png
 
 #: Parameter name → (what it changes, allowed range).
 VARIABLES = {
-    "se_stiffness": ("SE stiffness k of both units, N·m/rad", (1.0, 1e5)),
-    "extensor_level": ("constant extensor (co-)activation, initial level and every ramp",
-                       (0.0, 1.0)),
-    "dumbbell_mass": ("dumbbell mass, kg", (0.0, 100.0)),
-    "ce_damping": ("CE parallel damping β of both units (Millard et al. 2013), N·m·s/rad",
+    "se_stiffness": ("SE stiffness k of every unit (flexors and extensors alike), N·m/rad",
+                     (1.0, 1e5)),
+    "extensor_level": ("constant activation of every extensor unit (its co-activation): "
+                       "initial level and every ramp", (0.0, 1.0)),
+    "dumbbell_mass": ("mass of every point load (the dumbbell of the elbow curl), kg",
+                      (0.0, 100.0)),
+    "ce_damping": ("CE parallel damping β of every unit (Millard et al. 2013), N·m·s/rad",
                    (0.0, 1e4)),
 }
-SUMMARY_COLUMNS = ("variable", "value", "technique", "stability_limit_s", "min_tau_flexor_s",
-                   "min_tau_extensor_s", *(f"cheapest_{t:g}deg" for t in ACCURACY_TARGETS_DEG),
+SUMMARY_COLUMNS = ("variable", "value", "technique", "stability_limit_s", "min_tau_unit",
+                   "min_tau_s", *(f"cheapest_{t:g}deg" for t in ACCURACY_TARGETS_DEG),
                    *(f"wall_time_{t:g}deg_s" for t in ACCURACY_TARGETS_DEG))
 
 
@@ -58,20 +60,24 @@ def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
     return name, values
 
 
-def vary_model(model: ElbowModel, name: str, value: float) -> ElbowModel:
-    """``model`` with parameter ``name`` set to ``value`` (see :data:`VARIABLES`)."""
+def vary_model(model, name: str, value: float) -> ChainModel:
+    """``model`` (any chain) with parameter ``name`` set to ``value`` (see
+    :data:`VARIABLES`)."""
+    model = as_chain(model)
     try:
-        if name == "se_stiffness":
-            return model.replace(flexor=replace(model.flexor, se_stiffness=value),
-                                 extensor=replace(model.extensor, se_stiffness=value))
+        if name in ("se_stiffness", "ce_damping"):
+            units = tuple(replace(u, parameters=replace(u.parameters, **{name: value}))
+                          for u in model.units)
+            return model.replace(units=units)
         if name == "extensor_level":
-            ramps = tuple(replace(r, level=value) for r in model.extensor_activation.ramps)
-            return model.replace(extensor_activation=ActivationProfile(value, ramps))
-        if name == "ce_damping":
-            return model.replace(flexor=replace(model.flexor, ce_damping=value),
-                                 extensor=replace(model.extensor, ce_damping=value))
+            units = tuple(replace(u, activation=ActivationProfile(
+                value, tuple(replace(r, level=value) for r in u.activation.ramps)))
+                if u.direction == -1 else u for u in model.units)
+            return model.replace(units=units)
         if name == "dumbbell_mass":
-            return model.replace(body=replace(model.body, dumbbell_mass=value))
+            segments = tuple(replace(s, loads=tuple(replace(ld, mass=value) for ld in s.loads))
+                             for s in model.segments)
+            return model.replace(segments=segments)
     except ModelError as exc:
         raise ModelError("--vary", f"{name}={value:g} gives an invalid model: {exc}") from None
     raise ModelError("--vary", f"{name!r}; allowed: {', '.join(VARIABLES)}")
@@ -80,13 +86,14 @@ def vary_model(model: ElbowModel, name: str, value: float) -> ElbowModel:
 def summary_rows(name: str, value: float, rows: list[dict], reference) -> list[dict]:
     """One row per technique: its stability limit, the smallest τ of each unit over the
     reference motion, and the verdict's winner per accuracy target."""
-    tau_f, tau_e = reference.time_constants()
+    taus = {unit: float(np.min(tau)) for unit, tau in reference.time_constants().items()}
+    stiffest = min(taus, key=taus.get)
     verdicts = verdict(rows)
     out = []
     for tech in dict.fromkeys(r["technique"] for r in rows):
         row = {"variable": name, "value": value, "technique": tech,
                "stability_limit_s": stability_limit(rows, tech),
-               "min_tau_flexor_s": float(np.min(tau_f)), "min_tau_extensor_s": float(np.min(tau_e))}
+               "min_tau_unit": stiffest, "min_tau_s": taus[stiffest]}
         for v in verdicts:
             winner = v["winner"]
             row[f"cheapest_{v['target_deg']:g}deg"] = winner["technique"] if winner else ""
@@ -103,11 +110,10 @@ def plot_sensitivity(summary: list[dict], name: str):
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
     values = sorted({r["value"] for r in summary})
     first = {v: next(r for r in summary if r["value"] == v) for v in values}
-    for key, label in (("min_tau_flexor_s", "flexor"), ("min_tau_extensor_s", "extensor")):
-        ax0.loglog(values, [first[v][key] * 1e3 for v in values], "o-", label=f"min τ {label}")
-    ax0.loglog(values, [RK4_STABILITY_LIMIT * min(first[v]["min_tau_flexor_s"],
-                                                  first[v]["min_tau_extensor_s"]) * 1e3
-                        for v in values], "k:", label="RK4 limit 2.785·min τ")
+    ax0.loglog(values, [first[v]["min_tau_s"] * 1e3 for v in values], "o-",
+               label="smallest unit τ")
+    ax0.loglog(values, [RK4_STABILITY_LIMIT * first[v]["min_tau_s"] * 1e3 for v in values],
+               "k:", label="RK4 limit 2.785·min τ")
     ax0.set_xlabel(name)
     ax0.set_ylabel("ms")
     ax0.legend(fontsize="small")
@@ -163,7 +169,7 @@ def render_sensitivity(summary, name, figures: dict[float, bytes], overview: byt
     return "\n".join(out)
 
 
-def write_sensitivity(directory, model: ElbowModel, name: str, values, *, steps, repeats=3,
+def write_sensitivity(directory, model, name: str, values, *, steps, repeats=3,
                       progress=None, model_source="builtin") -> list[dict]:
     """Run the study per value into ``directory/NAME=VALUE/`` and write
     ``sensitivity.csv``, ``sensitivity.png`` and ``sensitivity.html`` into ``directory``."""

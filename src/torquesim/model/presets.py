@@ -1,0 +1,143 @@
+"""Built-in models (``builtin:NAME``): the elbow curl of MODEL.md and two chains.
+
+Anthropometry: de Leva (1996), J Biomech 29:1223, reference male of 73 kg (segment mass
+fractions, lengths, centre-of-mass positions and sagittal radii of gyration); inertias about
+the proximal joint by the parallel-axis theorem. Torque generator curves: the form of Yeadon,
+King & Wilson (2006), J Biomech 39:476, with the elbow values of MODEL.md §2.4. Values marked
+*est.* are reasoned estimates (docs/presets.md gives the reasoning for each).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from ..errors import ModelError
+from .activation import ActivationProfile, Ramp
+from .chain import ChainModel, Joint, PointLoad, Segment, Unit
+from .elbow import ElbowModel
+from .torque_generator import TorqueGeneratorUnit
+
+PREFIX = "builtin:"
+BODY_MASS = 73.0  # kg, de Leva's reference male
+
+
+def _de_leva(mass_fraction: float, length: float, com_fraction: float,
+             gyration_fraction: float) -> tuple[float, float, float]:
+    """(mass kg, centre-of-mass distance m, inertia about the proximal joint kg·m²) of a
+    de Leva (1996) segment of the 73 kg reference male."""
+    mass = mass_fraction * BODY_MASS
+    com = com_fraction * length
+    inertia = mass * (gyration_fraction * length) ** 2 + mass * com**2
+    return mass, com, inertia
+
+
+def _unit(t0: float, eccentric_ratio: float, optimal_angle: float, curvature: float,
+          stiffness: float) -> TorqueGeneratorUnit:
+    """A unit with the elbow's T_ω/d shape (MODEL.md §2.4: ω_max 18, ω_c 5.5 rad/s, a_min 0.9,
+    ω_r 0.5 rad/s) scaled to T0, and its own angle curve and SE stiffness."""
+    return TorqueGeneratorUnit(
+        isometric_torque=t0, eccentric_torque_max=eccentric_ratio * t0, max_velocity=18.0,
+        velocity_constant=5.5, min_differential_activation=0.90,
+        differential_activation_rate=0.5, differential_activation_midpoint=0.0,
+        optimal_angle=optimal_angle, angle_curvature=curvature, se_stiffness=stiffness)
+
+
+def elbow_curl() -> ChainModel:
+    """MODEL.md's default: a 5 kg dumbbell curl, 10° → ≈139° → ≈12° in 3 s."""
+    chain = ElbowModel().to_chain()
+    return chain.replace(name="elbow-curl", notes=(
+        "MODEL.md default elbow curl (torquesim docs/model.md): forearm+hand of de Leva (1996) "
+        "73 kg male, 5 kg dumbbell, elbow flexor/extensor of MODEL.md 2.4 (Yeadon et al. 2006 "
+        "form, Kentel et al. 2011 curves, Lategan & Kruger 2003 torques).",
+        "Activation profiles fitted to the MODEL.md 6 min-jerk curl (about 2 deg RMS).",))
+
+
+def knee_extension() -> ChainModel:
+    """Seated knee extension with a 5 kg ankle weight: thigh fixed horizontal, the shank and
+    foot swing up from hanging (90° knee flexion) to ≈15° and back in 3 s."""
+    shank_mass, shank_com, shank_inertia = _de_leva(0.0433, 0.4340, 0.4459, 0.255)
+    foot_mass = 0.0137 * BODY_MASS
+    foot_gyration = 0.245 * 0.2581
+    segment = Segment("shank_foot", shank_mass, shank_com, shank_inertia, 0.4340, (
+        PointLoad("foot", foot_mass, 0.4340 + 0.04, foot_mass * foot_gyration**2),
+        PointLoad("ankle_weight", 5.0, 0.40, 0.0),
+    ))
+    knee = Joint("knee", initial_angle=math.radians(90.0), endstop_torque=1.0,
+                 endstop_angle_scale=0.05, endstop_lower_angle=0.0,
+                 endstop_upper_angle=math.radians(140.0), coordinate="knee_angle")
+    extensor = Unit("knee_extensor", "knee", -1, _unit(200.0, 1.35, 1.13, 0.30, 1600.0),
+                    ActivationProfile(None, (Ramp(0.0, 0.709, 0.165), Ramp(0.0, 0.194, 0.202),
+                                             Ramp(0.989, 0.8, 0.114))))
+    flexor = Unit("knee_flexor", "knee", 1, _unit(110.0, 1.35, 0.60, 0.30, 600.0),
+                  ActivationProfile(0.05, (Ramp(0.489, 0.307, 0.027), Ramp(0.328, 0.243, 0.01),
+                                           Ramp(0.254, 0.529, 0.246))))
+    return ChainModel(
+        "knee-extension", (segment,), (knee,), (extensor, flexor), base_angle=-math.pi / 2,
+        duration=3.0, notes=(
+            "Shank 4.33 %, foot 1.37 % of 73 kg; shank 0.434 m, CoM 44.59 %, radius of "
+            "gyration 25.5 %; foot radius of gyration 24.5 % of 0.258 m (de Leva 1996).",
+            "Foot as a point load 4 cm beyond the ankle on the shank axis, ankle weight 5 kg at "
+            "0.40 m (est.). Thigh horizontal: base_angle = -90 deg.",
+            "Knee extensor T0 200 N m, flexor 110 N m (est., typical adult male isometric "
+            "peaks); optimal knee angles 65 and 35 deg (est.); SE 1600 and 600 N m/rad "
+            "(est., k/T0 as the elbow units); T_omega and d(omega) shape of MODEL.md 2.4.",
+            "Extensor and flexor activation ramps fitted (least squares, IMEX 5 ms) to a "
+            "min-jerk lift 90 -> 15 deg in 0.1-1.3 s, hold, lowering 1.7-2.9 s (0.4 deg RMS).",))
+
+
+def arm_raise() -> ChainModel:
+    """A front raise with a curl holding 2 kg: shoulder and elbow flex together in the
+    sagittal plane, hold, and lower again in 3 s."""
+    arm_mass, arm_com, arm_inertia = _de_leva(0.0271, 0.2817, 0.5772, 0.285)
+    elbow = ElbowModel()
+    b = elbow.body
+    upper_arm = Segment("upper_arm", arm_mass, arm_com, arm_inertia, 0.2817)
+    forearm = Segment("forearm_hand", b.segment_mass, b.segment_com_distance, b.segment_inertia,
+                      0.2689 + 0.0862, (PointLoad("dumbbell", 2.0, b.dumbbell_distance,
+                                                  b.dumbbell_inertia),))
+    shoulder = Joint("shoulder", initial_angle=math.radians(5.0), endstop_torque=1.0,
+                     endstop_angle_scale=0.05, endstop_lower_angle=math.radians(-50.0),
+                     endstop_upper_angle=math.radians(175.0))
+    elbow_joint = Joint("elbow", initial_angle=math.radians(10.0))
+    units = (
+        Unit("shoulder_flexor", "shoulder", 1, _unit(60.0, 1.35, 1.0, 0.20, 480.0),
+             ActivationProfile(None, (Ramp(0.09, 0.378, 0.56), Ramp(0.24, 0.348, 0.32),
+                                      Ramp(0.494, 0.604, 0.221)))),
+        Unit("shoulder_extensor", "shoulder", -1, _unit(70.0, 1.30, 0.8, 0.15, 350.0),
+             ActivationProfile(0.05, ())),
+        Unit("elbow_flexor", "elbow", 1, elbow.flexor,
+             ActivationProfile(None, (Ramp(0.0, 0.301, 0.371), Ramp(0.357, 0.417, 0.137),
+                                      Ramp(0.155, 0.245, 0.126)))),
+        Unit("elbow_extensor", "elbow", -1, elbow.extensor, ActivationProfile(0.1, ())),
+    )
+    return ChainModel(
+        "arm-raise", (upper_arm, forearm), (shoulder, elbow_joint), units, duration=3.0,
+        notes=(
+            "Upper arm 2.71 % of 73 kg, 0.2817 m, CoM 57.72 %, radius of gyration 28.5 %; "
+            "forearm+hand and elbow units as MODEL.md (de Leva 1996).",
+            "Dumbbell 2 kg in the hand. Shoulder flexor T0 60 N m, extensor 70 N m (est., adult "
+            "male isometric shoulder torques); optimal angles 57 and 46 deg (est.); SE 480 and "
+            "350 N m/rad (est.).",
+            "Flexor activation ramps fitted (least squares, IMEX 5 ms) to min-jerk raises "
+            "(shoulder 5 -> 90 deg, elbow 10 -> 90 deg in 0.1-1.3 s), hold, lowering 1.7-2.9 s.",))
+
+
+PRESETS: dict[str, Callable[[], ChainModel]] = {
+    "elbow-curl": elbow_curl,
+    "knee-extension": knee_extension,
+    "arm-raise": arm_raise,
+}
+
+
+def is_preset(spec) -> bool:
+    return isinstance(spec, str) and spec.startswith(PREFIX)
+
+
+def preset(name: str) -> ChainModel:
+    """The built-in model ``name`` (with or without the ``builtin:`` prefix)."""
+    key = name[len(PREFIX):] if name.startswith(PREFIX) else name
+    if key not in PRESETS:
+        raise ModelError("model", f"{name!r} is not a built-in model; allowed: "
+                         + ", ".join(PREFIX + k for k in PRESETS))
+    return PRESETS[key]()
