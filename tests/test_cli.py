@@ -69,7 +69,7 @@ def test_bad_model_file_names_the_key(tmp_path, capsys):
     assert run(["model", "--out", str(bad)], capsys)[0] == 0
     text = bad.read_text()
     assert 'name = "dumbbell", mass = 5.0,' in text
-    bad.write_text(text.replace('name = "dumbbell", mass = 5.0,', 'name = "dumbbell", mass = -5.0,'))
+    bad.write_text(text.replace('"dumbbell", mass = 5.0,', '"dumbbell", mass = -5.0,'))
     code, _, err = run(["simulate", "--model", str(bad), "--out", str(tmp_path / "o.csv")],
                        capsys)
     assert code == 2 and "segments[0].loads[0].mass" in err and "[0, inf)" in err

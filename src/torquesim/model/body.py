@@ -156,6 +156,12 @@ def single_segment_acceleration(q, muscle_torque, seg, joints):
 
 
 @njit(cache=True, error_model="numpy")
+def body_work_size(n):
+    """Length of the scratch array :func:`joint_accelerations` needs for n segments."""
+    return n * n + 4 * n
+
+
+@njit(cache=True, error_model="numpy")
 def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     """q̈ of a planar open chain (docs/model.md §1), rad/s², into work[n²:n²+n]; q = y[:n],
     q̇ = y[n:2n]:
@@ -169,19 +175,21 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     LDLᵀ factorization of M (symmetric positive definite).
 
     ``seg``: (n, 4) segment array of :meth:`ChainModel.segment_array`; ``joints``: the flat
-    joint rows (end stops, zero offset); ``work``: flat scratch of n² + 3n, which holds q̈ at
+    joint rows (end stops, zero offset); ``work``: flat scratch of n² + 4n, which holds q̈ at
     the end (no output array: the solvers' step loops pay for every array argument).
     """
     rhs = n * n
-    angle = rhs + n
-    speed = angle + n
+    sine = rhs + n
+    cosine = sine + n
+    speed = cosine + n
     phi = 0.0
     phid = 0.0
     for k in range(n):
         o = k * JOINT_ROW_SIZE
         phi += joints[o + ZERO_OFFSET] + y[k]
         phid += y[n + k]
-        work[angle + k] = phi
+        work[sine + k] = math.sin(phi)
+        work[cosine + k] = math.cos(phi)
         work[speed + k] = phid
         work[rhs + k] = muscle_torque[k] + passive_torque(y[k], joints, o)
     for j in range(n - 1):  # Q_j = τ_j − τ_{j+1}
@@ -191,12 +199,13 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
         for k in range(n):
             if k != j:
                 d_jk = seg[min(j, k), SEG_LENGTH_COLUMN] * seg[max(j, k), SEG_MOMENT_COLUMN]
-                diff = work[angle + j] - work[angle + k]
-                coriolis += d_jk * math.sin(diff) * work[speed + k] * work[speed + k]
-                if k > j:
-                    work[k * n + j] = d_jk * math.cos(diff)  # M_kj, lower triangle
-        work[rhs + j] = work[rhs + j] - coriolis \
-            - seg[j, SEG_GRAVITY_COLUMN] * math.sin(work[angle + j])
+                # sin and cos of φ_j − φ_k from those of φ_j and φ_k: 2n trig calls, not n²
+                sin_jk = work[sine + j] * work[cosine + k] - work[cosine + j] * work[sine + k]
+                coriolis += d_jk * sin_jk * work[speed + k] * work[speed + k]
+                if k > j:  # M_kj, lower triangle
+                    work[k * n + j] = d_jk * (work[cosine + j] * work[cosine + k]
+                                              + work[sine + j] * work[sine + k])
+        work[rhs + j] = work[rhs + j] - coriolis - seg[j, SEG_GRAVITY_COLUMN] * work[sine + j]
         work[j * n + j] = seg[j, SEG_INERTIA_COLUMN]
     # LDLᵀ in place: L below the diagonal, D on it.
     for j in range(n):

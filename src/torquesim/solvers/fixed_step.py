@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..model.body import joint_accelerations, single_segment_acceleration
+from ..model.body import body_work_size, joint_accelerations, single_segment_acceleration
 from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
 from .rates import (
     joint_muscle_torques,
@@ -91,6 +91,23 @@ def _predict(preceding, preceding_before, this_before):
 
 
 @njit(cache=True, error_model="numpy")
+def check_body_kind(seg, general_body):
+    """Number of segments n, after checking it matches ``general_body``.
+
+    The loops take ``general_body=True`` for chains of two or more segments (the general
+    mass-matrix solve, a compiled call) and leave it out for one segment, where the
+    acceleration is one division inlined into the step loop. Left out, it is a compile-time
+    constant and Numba removes the general branch from that compilation: a call to a
+    compiled function over arrays costs reference counting even where it is not taken
+    (measured: 14 % of the elbow's run).
+    """
+    n = seg.shape[0]
+    if n > 1 and not general_body:
+        raise ValueError("a chain of two or more segments needs general_body=True")
+    return n
+
+
+@njit(cache=True, error_model="numpy")
 def _general_accelerations(y, n, torque, seg, joints, work, dy, row):
     """q̈ of a chain of two or more segments into dy[row, n:2n] (the general mass-matrix
     solve, :func:`~torquesim.model.body.joint_accelerations`)."""
@@ -100,14 +117,16 @@ def _general_accelerations(y, n, torque, seg, joints, work, dy, row):
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats):
+def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
+                   general_body=False):
     """Classical RK4 on the whole state y = (q, q̇, θ_cc) (technique 2).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
     Activations are evaluated once per stage time. Each stage seeds the CE root finder with a
-    prediction from the previous step (see :func:`_predict`).
+    prediction from the previous step (see :func:`_predict`). ``general_body``: see
+    :func:`check_body_kind`.
     """
-    n = seg.shape[0]
+    n = check_body_kind(seg, general_body)
     nu = units.shape[0]
     width = profiles.shape[1]
     units = units.ravel()
@@ -128,7 +147,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats):
     seen4_before = np.full(nu, np.nan)
     levels = np.empty((3, nu))  # activations at t, t + h/2, t + h
     torque = np.empty(n)
-    work = np.empty(n * n + 3 * n)
+    work = np.empty(body_work_size(n))
     for u in range(nu):
         levels[0, u] = unit_activation(0.0, profiles, width, u)
     for step in range(n_steps):
@@ -161,10 +180,10 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats):
                     _record_stiffness(stats, t, h / tau, u)
             for j in range(n):
                 k[s, j] = stage[n + j]
-            if n == 1:
-                k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
-            else:
+            if general_body:
                 _general_accelerations(stage, n, torque, seg, joints, work, k, s)
+            else:
+                k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
         for u in range(nu):
             seen4_before[u] = seen[3, u]
             for s in range(4):
@@ -185,7 +204,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats):
 
 
 @njit(cache=True, error_model="numpy")
-def _body_rk4(y, n, h, seg, joints, work, b, y_new):
+def _body_rk4(y, n, h, seg, joints, work, b, y_new, general_body):
     """One RK4 step of the body part (q, q̇) = y[:2n] with joint torques
     τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
     result into y_new[:2n]. ``b`` is the partitioned loop's scratch array."""
@@ -204,11 +223,11 @@ def _body_rk4(y, n, h, seg, joints, work, b, y_new):
             b[_TORQUE, j] = b[_TORQUE0, j] + fraction * b[_TORQUE_SLOPE, j] if s > 0 \
                 else b[_TORQUE0, j]
             b[_K1 + s, j] = b[_STAGE, n + j]
-        if n == 1:
+        if general_body:
+            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
+        else:
             b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
                                                         joints)
-        else:
-            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
     w = h / 6.0
     for i in range(m):
         y_new[i] = y[i] + w * (b[_K1, i] + 2.0 * (b[_K2, i] + b[_K3, i]) + b[_K4, i])
@@ -302,7 +321,7 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
 
 @njit(cache=True, error_model="numpy")
 def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                         y_new):
+                         y_new, general_body):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
     The body stage sees the torque of the muscle stage state and the muscle stage sees the
@@ -332,18 +351,19 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
                 b[_STAGE, j], x, unit_activation(at, profiles, width, u), guess, units, u)
         for j in range(n):
             b[_K1 + s, j] = b[_STAGE, n + j]
-        if n == 1:
+        if general_body:
+            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
+        else:
             b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
                                                         joints)
-        else:
-            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
     w = h / 6.0
     for i in range(size):
         y_new[i] = y[i] + w * (b[_K1, i] + 2.0 * (b[_K2, i] + b[_K3, i]) + b[_K4, i])
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats):
+def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
+                    general_body=False):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -352,14 +372,15 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     Within a step each exchanged signal is affine in time: its step-start value plus a slope
     that is zero (hold), the previous step's change (linear extrapolation) or, once the other
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
+    ``general_body``: see :func:`check_body_kind`.
     """
+    n = check_body_kind(seg, general_body)
     order = int(coupling[ORDER])
     predictor = int(coupling[PREDICTOR])
     substeps = int(coupling[MUSCLE_SUBSTEPS])
     sweeps = int(coupling[ITERATIONS])
     tol = coupling[TOLERANCE]
     implicit_muscles = int(coupling[MUSCLE_SOLVER]) == SDIRK2
-    n = seg.shape[0]
     nu = units.shape[0]
     width = profiles.shape[1]
     units = units.ravel()
@@ -372,7 +393,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     for i in range(size):
         out[0, i] = y[i]
     b = np.empty((_SCRATCH_ROWS, size))
-    work = np.empty(n * n + 3 * n)
+    work = np.empty(body_work_size(n))
     q_prev = y0[:n].copy()
     torque_prev = np.empty(n)
     for u in range(nu):
@@ -393,7 +414,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
         stats[NFEV_MUSCLE] += 1
         if order == EVERY_STAGE:
             _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                                 y1)
+                                 y1, general_body)
             stats[NFEV_BODY] += 4
             stats[NFEV_MUSCLE] += 4
             stats[SWEEPS] += 1
@@ -418,9 +439,9 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                     joint_muscle_torques(b[_Q], y1, c, units, nu, b[_TORQUE], n)
                     for j in range(n):
                         b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                    _body_rk4(y, n, h, seg, joints, work, b, y1)
+                    _body_rk4(y, n, h, seg, joints, work, b, y1, general_body)
                 else:
-                    _body_rk4(y, n, h, seg, joints, work, b, y1)
+                    _body_rk4(y, n, h, seg, joints, work, b, y1, general_body)
                     if order == BODY_FIRST:
                         for j in range(n):
                             b[_Q_SLOPE, j] = y1[j] - y[j]

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from ..model.activation import activation
-from ..model.body import joint_accelerations, single_segment_acceleration
+from ..model.body import body_work_size, joint_accelerations, single_segment_acceleration
 from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
 from ..model.torque_generator import unit_ce_velocity_and_time_constant, unit_torque
 
@@ -96,7 +96,7 @@ def chain_derivative(t, y, seg, joints, units, profiles):
     if n == 1:
         dy[1] = single_segment_acceleration(y[0], torque[0], seg, joints)
     else:
-        work = np.empty(n * n + 3 * n)
+        work = np.empty(body_work_size(n))
         joint_accelerations(y, n, torque, seg, joints, work)
         dy[n:2 * n] = work[n * n: n * n + n]
     for u in range(nu):

@@ -128,10 +128,14 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     else:
         kernel, extra, label = fs.rk4_partitioned, (coupling.to_array(),), coupling.label()
         method = "partitioned"
+    if model.n_joints > 1:  # the general mass-matrix solve (fs.check_body_kind)
+        extra_after = (True,)
+    else:
+        extra_after = ()
     # A zero-step call compiles the loop (or loads it from the disk cache) outside the timing.
-    kernel(y0, float(step), 0, *packed, *extra, out, fs.new_stats())
+    kernel(y0, float(step), 0, *packed, *extra, out, fs.new_stats(), *extra_after)
     start = _time.perf_counter()
-    kernel(y0, float(step), n, *packed, *extra, out, stats)
+    kernel(y0, float(step), n, *packed, *extra, out, stats, *extra_after)
     wall = _time.perf_counter() - start
     done = int(stats[fs.STEPS])
     times = np.arange(done + 1) * step

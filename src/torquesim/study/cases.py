@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..model.activation import ActivationProfile
+from ..model.chain import ChainModel
 from ..model.elbow import ElbowModel, default_model
 
 
@@ -28,3 +31,37 @@ def smooth_case() -> tuple[ElbowModel, np.ndarray]:
     y0 = model.initial_state().state.copy()
     y0[3] -= 0.002
     return model, y0
+
+
+def smooth_chain_case() -> tuple[ChainModel, np.ndarray]:
+    """A two-joint motion whose right-hand side is smooth along the whole solution (0.25 s).
+
+    The arm-raise preset with constant activations: both extensors at 0.3, both flexors 0.45
+    (shoulder) and 0.3 (elbow) above the level that holds the start; started from the static
+    equilibrium of the extensor levels with each extensor SE stretched 0.005 rad further.
+    Along the motion both flexors shorten (ω_cc ≥ 0.2 rad/s) and both extensors lengthen
+    (ω_cc ≤ −0.02 rad/s), no CE velocity is clamped and no SE goes slack (checked in the
+    tests); the shoulder reaches ≈18° and the elbow ≈22°. Smallest CE time constant ≈ 0.63 ms,
+    so RK4 is stable for h ≤ 1.7 ms.
+
+    Returns
+    -------
+    model, initial_state
+        Pass ``initial_state`` to :func:`torquesim.simulate`.
+    """
+    from ..model.presets import preset
+
+    arm = preset("arm-raise")
+    extensor_level = 0.3
+    held = arm.replace(units=tuple(
+        replace(u, activation=ActivationProfile(None if u.direction == 1 else extensor_level))
+        for u in arm.units), duration=0.25)
+    start = held.initial_state()
+    bump = {"shoulder": 0.45, "elbow": 0.3}
+    units = tuple(replace(u, activation=ActivationProfile(start.levels[i] + bump[u.joint]))
+                  if u.direction == 1 else u for i, u in enumerate(held.units))
+    y0 = start.state.copy()
+    for i, unit in enumerate(held.units):
+        if unit.direction == -1:
+            y0[2 * held.n_joints + i] -= 0.005
+    return held.replace(units=units), y0

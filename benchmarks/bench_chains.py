@@ -1,0 +1,151 @@
+"""Chains: the elbow against the elbow-only code it replaced, and cost per step against the
+number of segments.
+
+Run:  python benchmarks/bench_chains.py [--repeats 15] [--rounds 3]
+
+1. **The elbow is unchanged and no slower.** The elbow-only implementation (torquesim 0.1,
+   git commit ``FROZEN_COMMIT``) is extracted from the repository's history into a temporary
+   folder (``git archive``) and run in its own process with its own Numba cache; the current
+   code runs the same curl in another process. Both print the median wall time of
+   ``--repeats`` runs per method after compilation; the two processes alternate for
+   ``--rounds`` rounds (so machine load hits both alike) and the ratio current/frozen is
+   printed per round. The trajectories of both are compared (max |Δy|, target ≤ 1e-12 rad).
+   Target: monolithic at 0.1 ms within 1.2× of the frozen code.
+2. **Cost per RK4 step against chain length.** Chains of 1 to 6 segments (two units per
+   joint, constant activations, 1 s at 0.1 ms, monolithic RK4) in this process; ns per step
+   and the ratio to the elbow preset measured in the same run. Targets: 2 segments ≤ 2.5×,
+   6 segments ≤ 8× the elbow's per-step cost.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+FROZEN_COMMIT = "d52e451"
+ROOT = Path(__file__).resolve().parent.parent
+METHODS = {  # name: (method, step s, coupling keyword arguments)
+    "monolithic 0.1 ms": ("monolithic", 1e-4, None),
+    "partitioned 0.1 ms": ("partitioned", 1e-4, None),
+    "imex 5 ms": ("imex", 5e-3, None),
+}
+
+TIMER = r"""
+import json, sys, time
+import numpy as np
+import torquesim as ts
+methods = json.loads(sys.argv[1]); repeats = int(sys.argv[2]); save = sys.argv[3]
+model = ts.default_model()
+out, states = {}, {}
+for name, (method, step, _) in methods.items():
+    ts.simulate(model, method, step)
+    walls = [ts.simulate(model, method, step).cost.wall_time for _ in range(repeats)]
+    out[name] = float(np.median(walls))
+    states[name] = ts.simulate(model, method, step).states
+np.savez(save, **states)
+print(json.dumps(out))
+"""
+
+
+def run_timer(src: Path, cache: Path, repeats: int, save: Path) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache))
+    proc = subprocess.run([sys.executable, "-c", TIMER, json.dumps(METHODS), str(repeats),
+                           str(save)], env=env, capture_output=True, text=True, check=True,
+                          cwd=save.parent)
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def frozen_against_current(repeats: int, rounds: int) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        frozen = tmp / "frozen"
+        frozen.mkdir()
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", FROZEN_COMMIT, "src"],
+                                 capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(frozen)], input=archive, check=True)
+        sources = {"frozen": frozen / "src", "current": ROOT / "src"}
+        results = {k: [] for k in sources}
+        for r in range(rounds):
+            for label, src in sources.items():
+                results[label].append(run_timer(src, tmp / f"cache-{label}", repeats,
+                                                tmp / f"{label}.npz"))
+            last = {k: v[-1] for k, v in results.items()}
+            ratios = ", ".join(f"{name} {last['current'][name] / last['frozen'][name]:.2f}×"
+                               for name in METHODS)
+            print(f"round {r + 1}: current/frozen median wall time: {ratios}")
+        for name in METHODS:
+            frozen_t = np.median([x[name] for x in results["frozen"]])
+            current_t = np.median([x[name] for x in results["current"]])
+            print(f"{name:20s} frozen {frozen_t * 1e3:7.2f} ms, current {current_t * 1e3:7.2f} ms"
+                  f" -> {current_t / frozen_t:.2f}× (median over rounds)")
+        old, new = np.load(tmp / "frozen.npz"), np.load(tmp / "current.npz")
+        worst = max(float(np.max(np.abs(old[n] - new[n]))) for n in METHODS)
+        print(f"max |y_current − y_frozen| over these runs: {worst:.3g} (target ≤ 1e-12)")
+        mono = np.median([x["monolithic 0.1 ms"] / y["monolithic 0.1 ms"]
+                          for x, y in zip(results["current"], results["frozen"], strict=True)])
+        print(f"target monolithic within 1.2× of the frozen code: {mono:.2f}× -> "
+              f"{'met' if mono <= 1.2 else 'NOT met'}")
+
+
+def test_chain(n: int):
+    """An n-segment chain, two units per joint (flexor held from equilibrium, extensor at a
+    constant 0.1), hanging slightly flexed."""
+    import torquesim as ts
+
+    flexor, extensor = ts.TorqueGeneratorUnit.flexor_default(), \
+        ts.TorqueGeneratorUnit.extensor_default()
+    segments, joints, units = [], [], []
+    for k in range(n):
+        mass = 4.0 / (k + 1)
+        segments.append(ts.Segment(f"s{k}", mass, 0.15, mass * 0.15**2 + 0.01, 0.3))
+        joints.append(ts.Joint(f"j{k}", initial_angle=0.2, endstop_lower_angle=-1.0))
+        units += [ts.Unit(f"f{k}", f"j{k}", 1, flexor, ts.ActivationProfile(None)),
+                  ts.Unit(f"e{k}", f"j{k}", -1, extensor, ts.ActivationProfile(0.1))]
+    return ts.ChainModel(f"chain{n}", tuple(segments), tuple(joints), tuple(units),
+                         duration=1.0)
+
+
+def cost_per_segment_count(repeats: int) -> None:
+    import torquesim as ts
+
+    def per_step(model) -> float:
+        ts.simulate(model, "monolithic", 1e-4, check=False)
+        runs = [ts.simulate(model, "monolithic", 1e-4, check=False) for _ in range(repeats)]
+        return float(np.median([r.cost.wall_time / r.cost.steps for r in runs]))
+
+    elbow = per_step(ts.load_model("builtin:elbow-curl"))
+    print(f"elbow preset (1 segment, 2 units): {elbow * 1e9:7.0f} ns per RK4 step")
+    targets = {2: 2.5, 6: 8.0}
+    for n in range(1, 7):
+        cost = per_step(test_chain(n))
+        verdict = ""
+        if n in targets:
+            verdict = f" (target ≤ {targets[n]:g}× -> " \
+                      f"{'met' if cost / elbow <= targets[n] else 'NOT met'})"
+        print(f"{n} segment{'s' if n > 1 else ' '}, {2 * n:2d} units: {cost * 1e9:7.0f} ns per "
+              f"step, {cost / elbow:5.2f}× the elbow{verdict}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=15)
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args()
+    start = time.perf_counter()
+    print(f"load average at start: {os.getloadavg()[0]:.2f} (2 cores)")
+    frozen_against_current(args.repeats, args.rounds)
+    cost_per_segment_count(args.repeats)
+    print(f"load average at end: {os.getloadavg()[0]:.2f}; "
+          f"benchmark took {time.perf_counter() - start:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
