@@ -117,7 +117,7 @@ class BodyParameters:
         return p
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def passive_torque(theta, b, o=0):
     """End-stop torque T_p(θ) = k_p·[exp((θ_lo − θ)/s_p) − exp((θ − θ_hi)/s_p)], N·m."""
     s = b[o + ENDSTOP_SCALE]
@@ -161,7 +161,7 @@ def body_work_size(n):
     return n * n + 4 * n
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     """q̈ of a planar open chain (docs/model.md §1), rad/s², into work[n²:n²+n]; q = y[:n],
     q̇ = y[n:2n]:
@@ -194,19 +194,18 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
         work[rhs + k] = muscle_torque[k] + passive_torque(y[k], joints, o)
     for j in range(n - 1):  # Q_j = τ_j − τ_{j+1}
         work[rhs + j] -= work[rhs + j + 1]
-    for j in range(n):
-        coriolis = 0.0
-        for k in range(n):
-            if k != j:
-                d_jk = seg[min(j, k), SEG_LENGTH_COLUMN] * seg[max(j, k), SEG_MOMENT_COLUMN]
-                # sin and cos of φ_j − φ_k from those of φ_j and φ_k: 2n trig calls, not n²
-                sin_jk = work[sine + j] * work[cosine + k] - work[cosine + j] * work[sine + k]
-                coriolis += d_jk * sin_jk * work[speed + k] * work[speed + k]
-                if k > j:  # M_kj, lower triangle
-                    work[k * n + j] = d_jk * (work[cosine + j] * work[cosine + k]
-                                              + work[sine + j] * work[sine + k])
-        work[rhs + j] = work[rhs + j] - coriolis - seg[j, SEG_GRAVITY_COLUMN] * work[sine + j]
+    for j in range(n):  # gravity, and the diagonal of M
+        work[rhs + j] -= seg[j, SEG_GRAVITY_COLUMN] * work[sine + j]
         work[j * n + j] = seg[j, SEG_INERTIA_COLUMN]
+    for j in range(n):  # each pair j < k once: M_kj, and c_j, c_k (sin is antisymmetric)
+        for k in range(j + 1, n):
+            d_jk = seg[j, SEG_LENGTH_COLUMN] * seg[k, SEG_MOMENT_COLUMN]
+            # sin and cos of φ_j − φ_k from those of φ_j and φ_k: 2n trig calls, not n²
+            sin_jk = work[sine + j] * work[cosine + k] - work[cosine + j] * work[sine + k]
+            work[k * n + j] = d_jk * (work[cosine + j] * work[cosine + k]
+                                      + work[sine + j] * work[sine + k])
+            work[rhs + j] -= d_jk * sin_jk * work[speed + k] * work[speed + k]
+            work[rhs + k] += d_jk * sin_jk * work[speed + j] * work[speed + j]
     # LDLᵀ in place: L below the diagonal, D on it.
     for j in range(n):
         d = work[j * n + j]

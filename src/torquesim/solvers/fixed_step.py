@@ -107,7 +107,7 @@ def check_body_kind(seg, general_body):
     return n
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _general_accelerations(y, n, torque, seg, joints, work, dy, row):
     """q̈ of a chain of two or more segments into dy[row, n:2n] (the general mass-matrix
     solve, :func:`~torquesim.model.body.joint_accelerations`)."""
