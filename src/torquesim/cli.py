@@ -231,7 +231,7 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
 @cli.command()
 @click.option("--target", "target_spec", default="builtin:curl", show_default=True,
               help="Measured motion: a .csv (columns time and an angle) or OpenSim .mot/.sto "
-                   "file, or builtin:curl (MODEL.md §6 min-jerk curl 10°→135°→10°).")
+                   "file, or builtin:curl (docs/model.md §6 min-jerk curl 10°→135°→10°).")
 @click.option("--column", help="Angle column of the target (default: the only angle column, "
                                "or the only one whose name contains 'elbow').")
 @click.option("--units", type=click.Choice(["deg", "rad"]),

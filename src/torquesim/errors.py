@@ -7,6 +7,9 @@ single line and exit with status 2.
 from __future__ import annotations
 
 import math
+import numbers
+
+import numpy as np
 
 
 class ModelError(ValueError):
@@ -46,9 +49,9 @@ def check_range(
 ) -> float:
     """Return ``float(value)`` or raise :class:`ModelError` naming ``field`` and the range.
 
-    The interval is ``[low, high]``; ``low_open``/``high_open`` exclude an end.
+    Any real number is accepted (NumPy scalars included); booleans are not. The interval is ``[low, high]``; ``low_open``/``high_open`` exclude an end.
     """
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise ModelError(field, f"must be a number, got {value!r}")
     v = float(value)
     lo_ok = v > low if low_open else v >= low

@@ -40,7 +40,7 @@ class ParameterSpace:
         Parameter name → fixed value; those are not searched.
     extensor_rest : float
         The extensor's initial (rest) activation, a setting, not fitted. Default 0.1
-        (MODEL.md). The flexor's initial level comes from static equilibrium.
+        (docs/model.md). The flexor's initial level comes from static equilibrium.
     """
 
     lower: tuple[float, ...] = tuple(DEFAULT_BOUNDS[_field_of(n)][0] for n in PARAMETER_NAMES)

@@ -58,7 +58,7 @@ class Target:
 
 def min_jerk_curl(start_deg: float = 10.0, peak_deg: float = 135.0, half_time: float = 1.5,
                   sample_interval: float = BUILTIN_SAMPLE_INTERVAL) -> Target:
-    """MODEL.md §6: start → peak → start, each half a minimum-jerk quintic
+    """docs/model.md §6: start → peak → start, each half a minimum-jerk quintic
     θ = θ_a + (θ_b − θ_a)(10s³ − 15s⁴ + 6s⁵) lasting ``half_time`` s."""
     n = int(round(2 * half_time / sample_interval))
     t = np.linspace(0.0, 2 * half_time, n + 1)

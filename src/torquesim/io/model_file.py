@@ -170,7 +170,7 @@ def _profile(prefix: str, table: dict, default: ActivationProfile | None) -> Act
 
 
 def _legacy_elbow(data: dict) -> ElbowModel:
-    """An elbow model from the torquesim 0.1 layout (missing keys: MODEL.md defaults)."""
+    """An elbow model from the torquesim 0.1 layout (missing keys: docs/model.md defaults)."""
     default = ElbowModel()
     _check_keys("", data, LEGACY_KEYS)
     body = _build(BodyParameters, "body", _table("body", data.get("body", {})),
@@ -256,11 +256,12 @@ def model_from_dict(data: dict) -> ChainModel:
     if not any(key in data for key in ("segments", "joints", "units")) and \
             all(key in LEGACY_KEYS for key in data):
         return _legacy_elbow(data).to_chain()
-    _check_keys("", data, TOP_KEYS, ("segments", "joints", "units"))
-    segments = [_segment(i, t) for i, t in enumerate(_array_of_tables("segments",
-                                                                        data["segments"]))]
-    joints = [_joint(i, t) for i, t in enumerate(_array_of_tables("joints", data["joints"]))]
-    units = [_unit(i, t) for i, t in enumerate(_array_of_tables("units", data["units"]))]
+    _check_keys("", data, TOP_KEYS)
+    parts = {}
+    for key, build in (("segments", _segment), ("joints", _joint), ("units", _unit)):
+        _check_keys("", data, TOP_KEYS, (key,))  # in file order: report the first problem
+        parts[key] = [build(i, t) for i, t in enumerate(_array_of_tables(key, data[key]))]
+    segments, joints, units = parts["segments"], parts["joints"], parts["units"]
     notes = data.get("notes", [])
     if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
         raise ModelError("notes", "must be an array of strings")

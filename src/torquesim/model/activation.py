@@ -1,4 +1,4 @@
-"""Parametric activation profiles: a chain of quintic ramps (MODEL.md §3).
+"""Parametric activation profiles: a chain of quintic ramps (docs/model.md §3).
 
 One ramp from level a_prev to a_i, starting at t_on and lasting r:
 

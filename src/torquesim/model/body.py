@@ -1,4 +1,4 @@
-"""The body: forearm + hand + dumbbell turning about a fixed elbow (MODEL.md §1).
+"""The body: forearm + hand + dumbbell turning about a fixed elbow (docs/model.md §1).
 
     I_E · dω/dt = T_net + T_p(θ) − (m_t·g·l1 + m_db·g·l2)·sin θ          (abstract Eq. 1)
 
@@ -25,7 +25,7 @@ BODY_ARRAY_SIZE = 6
 class BodyParameters:
     """Anthropometry of the moving segment and the dumbbell, and the passive end stops.
 
-    Defaults are MODEL.md §1 (de Leva 1996, reference male 73 kg; 5 kg dumbbell).
+    Defaults are docs/model.md §1 (de Leva 1996, reference male 73 kg; 5 kg dumbbell).
 
     Attributes
     ----------
@@ -144,7 +144,7 @@ SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN = r
 @njit(cache=True, error_model="numpy", inline="always")
 def single_segment_acceleration(q, muscle_torque, seg, joints):
     """q̈ of a one-segment chain, rad/s²: M is the scalar A_1, so :func:`joint_accelerations`
-    reduces to one division, MODEL.md's
+    reduces to one division, docs/model.md's
 
         I_E·dω/dt = T_net + T_p(θ) − G·sin θ      (abstract Eq. 1 with end stops)
 

@@ -15,7 +15,7 @@ positive q) or −1 (extensor). The state used everywhere is
     y = (q_1 … q_n, q̇_1 … q̇_n, θ_cc of every unit)
 
 in rad and rad/s; the units are rows of one array, in the order they are listed.
-The elbow of MODEL.md is the one-segment chain with one flexor and one extensor.
+The elbow of docs/model.md is the one-segment chain with one flexor and one extensor.
 """
 
 from __future__ import annotations
@@ -162,7 +162,7 @@ class Segment:
 
 @dataclass(frozen=True)
 class Joint:
-    """A hinge joint and its passive end stops (MODEL.md §1 form).
+    """A hinge joint and its passive end stops (docs/model.md §1 form).
 
         T_p(q) = k_p·[exp((q_lo − q)/s_p) − exp((q − q_hi)/s_p)]
 
@@ -475,10 +475,10 @@ class ChainModel:
           units with ``initial_level = "equilibrium"`` whose direction is sign(τ) (the
           agonists), at one common level; "equilibrium" units of the other direction rest at
           activation 0. With one agonist the level is closed-form: s = |τ|/k,
-          a = |τ|/(h(0)·T_θ(q + d·s)) (MODEL.md §3).
+          a = |τ|/(h(0)·T_θ(q + d·s)) (docs/model.md §3).
         - A joint with no "equilibrium" unit: the one unit of direction sign(τ_load) carries
           τ (its stretch solved as above) at its own given level, so its CE starts away from
-          isometric (MODEL.md's elbow with a given flexor level); with several such units
+          isometric (docs/model.md's elbow with a given flexor level); with several such units
           each is isometric at its own level and the joint need not start at rest.
 
         Raises :class:`ModelError` naming the joint when no level in [0, 1] holds it.
@@ -493,7 +493,7 @@ class ChainModel:
         for j, joint in enumerate(self.joints):
             q = q0[j]
             passive = passive_torque(q, joint.endstop_array())
-            if gravity is None:  # one segment: the elbow's own arithmetic (MODEL.md §3)
+            if gravity is None:  # one segment: the elbow's own arithmetic (docs/model.md §3)
                 needed = segments[0, SEG_GRAVITY] * math.sin(self.base_angle + q) - passive
             else:
                 needed = -gravity[j] - passive

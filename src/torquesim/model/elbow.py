@@ -20,7 +20,7 @@ STATE_NAMES = ("theta", "omega", "theta_cc_flexor", "theta_cc_extensor")
 
 
 class InitialState(NamedTuple):
-    """Static equilibrium at rest (MODEL.md §3)."""
+    """Static equilibrium at rest (docs/model.md §3)."""
 
     state: np.ndarray  #: (θ0, 0, θ_cc,F, θ_cc,E), rad
     flexor_level: float  #: a_0,F used in the run
@@ -30,13 +30,13 @@ class InitialState(NamedTuple):
 
 
 def default_flexor_activation() -> ActivationProfile:
-    """The fitted flexor profile of the default curl (MODEL.md §3)."""
+    """The fitted flexor profile of the default curl (docs/model.md §3)."""
     return ActivationProfile(None, (Ramp(0.058, 0.311, 0.556), Ramp(0.498, 0.613, 0.227),
                                     Ramp(0.511, 0.462, 0.26)))
 
 
 def default_extensor_activation() -> ActivationProfile:
-    """Constant extensor co-activation 0.1 as three flat ramps (MODEL.md §3)."""
+    """Constant extensor co-activation 0.1 as three flat ramps (docs/model.md §3)."""
     return ActivationProfile(0.1, tuple(Ramp(0.0, 0.3, 0.1) for _ in range(3)))
 
 
@@ -84,7 +84,7 @@ class ElbowModel:
         return replace(self, **changes)
 
     def initial_state(self) -> InitialState:
-        """Static equilibrium at rest at θ0 with ω_cc = 0 in both units (MODEL.md §3), as
+        """Static equilibrium at rest at θ0 with ω_cc = 0 in both units (docs/model.md §3), as
         solved by :meth:`ChainModel.initial_state` on :meth:`to_chain`.
 
         The extensor SE stretch s solves k_E·s = a_0,E·T_θ,E(θ0 − s)·h_E(0); the flexor then
@@ -160,5 +160,5 @@ class ElbowModel:
 
 
 def default_model() -> ElbowModel:
-    """The built-in 5 kg dumbbell curl of MODEL.md (θ0 = 10°, 3.0 s)."""
+    """The built-in 5 kg dumbbell curl of docs/model.md (θ0 = 10°, 3.0 s)."""
     return ElbowModel()

@@ -1,9 +1,9 @@
-"""Built-in models (``builtin:NAME``): the elbow curl of MODEL.md and two chains.
+"""Built-in models (``builtin:NAME``): the elbow curl of docs/model.md and two chains.
 
 Anthropometry: de Leva (1996), J Biomech 29:1223, reference male of 73 kg (segment mass
 fractions, lengths, centre-of-mass positions and sagittal radii of gyration); inertias about
 the proximal joint by the parallel-axis theorem. Torque generator curves: the form of Yeadon,
-King & Wilson (2006), J Biomech 39:476, with the elbow values of MODEL.md §2.4. Values marked
+King & Wilson (2006), J Biomech 39:476, with the elbow values of docs/model.md §2.4. Values marked
 *est.* are reasoned estimates (docs/presets.md gives the reasoning for each).
 """
 
@@ -34,7 +34,7 @@ def _de_leva(mass_fraction: float, length: float, com_fraction: float,
 
 def _unit(t0: float, eccentric_ratio: float, optimal_angle: float, curvature: float,
           stiffness: float) -> TorqueGeneratorUnit:
-    """A unit with the elbow's T_ω/d shape (MODEL.md §2.4: ω_max 18, ω_c 5.5 rad/s, a_min 0.9,
+    """A unit with the elbow's T_ω/d shape (docs/model.md §2.4: ω_max 18, ω_c 5.5 rad/s, a_min 0.9,
     ω_r 0.5 rad/s) scaled to T0, and its own angle curve and SE stiffness."""
     return TorqueGeneratorUnit(
         isometric_torque=t0, eccentric_torque_max=eccentric_ratio * t0, max_velocity=18.0,
@@ -44,13 +44,13 @@ def _unit(t0: float, eccentric_ratio: float, optimal_angle: float, curvature: fl
 
 
 def elbow_curl() -> ChainModel:
-    """MODEL.md's default: a 5 kg dumbbell curl, 10° → ≈139° → ≈12° in 3 s."""
+    """docs/model.md's default: a 5 kg dumbbell curl, 10° → ≈139° → ≈12° in 3 s."""
     chain = ElbowModel().to_chain()
     return chain.replace(name="elbow-curl", notes=(
-        "MODEL.md default elbow curl (torquesim docs/model.md): forearm+hand of de Leva (1996) "
-        "73 kg male, 5 kg dumbbell, elbow flexor/extensor of MODEL.md 2.4 (Yeadon et al. 2006 "
-        "form, Kentel et al. 2011 curves, Lategan & Kruger 2003 torques).",
-        "Activation profiles fitted to the MODEL.md 6 min-jerk curl (about 2 deg RMS).",))
+        "The default elbow curl of torquesim's docs/model.md: forearm+hand of de Leva (1996) "
+        "73 kg male, 5 kg dumbbell, elbow flexor/extensor of docs/model.md 2.4 (Yeadon et al. "
+        "2006 form, Kentel et al. 2011 curves, Lategan & Kruger 2003 torques).",
+        "Activation profiles fitted to the min-jerk curl of docs/model.md 6 (about 2 deg RMS).",))
 
 
 def knee_extension() -> ChainModel:
@@ -81,14 +81,14 @@ def knee_extension() -> ChainModel:
             "0.40 m (est.). Thigh horizontal: base_angle = -90 deg.",
             "Knee extensor T0 200 N m, flexor 110 N m (est., typical adult male isometric "
             "peaks); optimal knee angles 65 and 35 deg (est.); SE 1600 and 600 N m/rad "
-            "(est., k/T0 as the elbow units); T_omega and d(omega) shape of MODEL.md 2.4.",
+            "(est., k/T0 as the elbow units); T_omega and d(omega) shape of docs/model.md 2.4.",
             "Extensor and flexor activation ramps fitted (least squares, IMEX 5 ms) to a "
             "min-jerk lift 90 -> 15 deg in 0.1-1.3 s, hold, lowering 1.7-2.9 s (0.4 deg RMS).",))
 
 
 def arm_raise() -> ChainModel:
     """A front raise with a curl holding 2 kg: shoulder and elbow flex together in the
-    sagittal plane, hold, and lower again in 3 s."""
+    sagittal plane to ≈70°, hold, and lower again in 3 s."""
     arm_mass, arm_com, arm_inertia = _de_leva(0.0271, 0.2817, 0.5772, 0.285)
     elbow = ElbowModel()
     b = elbow.body
@@ -102,25 +102,29 @@ def arm_raise() -> ChainModel:
     elbow_joint = Joint("elbow", initial_angle=math.radians(10.0))
     units = (
         Unit("shoulder_flexor", "shoulder", 1, _unit(60.0, 1.35, 1.0, 0.20, 480.0),
-             ActivationProfile(None, (Ramp(0.09, 0.378, 0.56), Ramp(0.24, 0.348, 0.32),
-                                      Ramp(0.494, 0.604, 0.221)))),
+             ActivationProfile(None, (Ramp(0.087, 0.375, 0.529), Ramp(0.276, 0.402, 0.324),
+                                      Ramp(0.695, 0.784, 0.258)))),
         Unit("shoulder_extensor", "shoulder", -1, _unit(70.0, 1.30, 0.8, 0.15, 350.0),
-             ActivationProfile(0.05, ())),
+             ActivationProfile(0.05, (Ramp(0.298, 0.31, 0.074), Ramp(0.33, 0.309, 0.025),
+                                      Ramp(0.263, 0.269, 0.092)))),
         Unit("elbow_flexor", "elbow", 1, elbow.flexor,
-             ActivationProfile(None, (Ramp(0.0, 0.301, 0.371), Ramp(0.357, 0.417, 0.137),
-                                      Ramp(0.155, 0.245, 0.126)))),
-        Unit("elbow_extensor", "elbow", -1, elbow.extensor, ActivationProfile(0.1, ())),
+             ActivationProfile(None, (Ramp(0.028, 0.355, 0.374), Ramp(0.347, 0.419, 0.144),
+                                      Ramp(0.15, 0.243, 0.146)))),
+        Unit("elbow_extensor", "elbow", -1, elbow.extensor,
+             ActivationProfile(0.1, (Ramp(0.41, 0.358, 0.104), Ramp(0.368, 0.372, 0.095),
+                                     Ramp(0.454, 0.429, 0.025)))),
     )
     return ChainModel(
         "arm-raise", (upper_arm, forearm), (shoulder, elbow_joint), units, duration=3.0,
         notes=(
             "Upper arm 2.71 % of 73 kg, 0.2817 m, CoM 57.72 %, radius of gyration 28.5 %; "
-            "forearm+hand and elbow units as MODEL.md (de Leva 1996).",
+            "forearm+hand and elbow units as docs/model.md (de Leva 1996).",
             "Dumbbell 2 kg in the hand. Shoulder flexor T0 60 N m, extensor 70 N m (est., adult "
             "male isometric shoulder torques); optimal angles 57 and 46 deg (est.); SE 480 and "
             "350 N m/rad (est.).",
-            "Flexor activation ramps fitted (least squares, IMEX 5 ms) to min-jerk raises "
-            "(shoulder 5 -> 90 deg, elbow 10 -> 90 deg in 0.1-1.3 s), hold, lowering 1.7-2.9 s.",))
+            "Activation ramps of all four units fitted (least squares, IMEX 2 ms) to min-jerk "
+            "raises (shoulder 5 -> 70 deg, elbow 10 -> 70 deg in 0.1-1.3 s), hold, lowering "
+            "1.7-2.9 s (2.9 deg RMS).",))
 
 
 PRESETS: dict[str, Callable[[], ChainModel]] = {

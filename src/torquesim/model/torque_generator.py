@@ -1,4 +1,4 @@
-"""Rotational Hill-type torque generator unit (MODEL.md §2).
+"""Rotational Hill-type torque generator unit (docs/model.md §2).
 
 A unit is a contractile element (CE) in series with a linear torsional series elastic element
 (SE). The CE torque is
@@ -33,9 +33,9 @@ T_C, C_CONC, OMEGA_E, E_ECC, H_ISOMETRIC, H_ECC_LIMIT = 11, 12, 13, 14, 15, 16
 CE_DAMPING = 17
 UNIT_ARRAY_SIZE = 18
 
-#: The torque/angle curve never falls below this fraction of its peak (MODEL.md §2.3).
+#: The torque/angle curve never falls below this fraction of its peak (docs/model.md §2.3).
 TORQUE_ANGLE_FLOOR = 0.01
-#: Activation used in the CE equation is max(a, ACTIVATION_FLOOR) (MODEL.md §2.5).
+#: Activation used in the CE equation is max(a, ACTIVATION_FLOOR) (docs/model.md §2.5).
 ACTIVATION_FLOOR = 0.01
 
 
@@ -108,7 +108,7 @@ class TorqueGeneratorUnit:
 
     @classmethod
     def flexor_default(cls) -> TorqueGeneratorUnit:
-        """Elbow flexor defaults of MODEL.md §2.4 (Yeadon et al. 2006 form; Kentel et al. 2011
+        """Elbow flexor defaults of docs/model.md §2.4 (Yeadon et al. 2006 form; Kentel et al. 2011
         curves; T0 consistent with Lategan & Krüger 2003)."""
         return cls(isometric_torque=75.0, eccentric_torque_max=101.25, max_velocity=18.0,
                    velocity_constant=5.5, min_differential_activation=0.90,
@@ -117,7 +117,7 @@ class TorqueGeneratorUnit:
 
     @classmethod
     def extensor_default(cls) -> TorqueGeneratorUnit:
-        """Elbow extensor defaults of MODEL.md §2.4."""
+        """Elbow extensor defaults of docs/model.md §2.4."""
         return cls(isometric_torque=60.0, eccentric_torque_max=78.0, max_velocity=18.0,
                    velocity_constant=5.5, min_differential_activation=0.90,
                    differential_activation_rate=0.5, differential_activation_midpoint=0.0,
@@ -255,7 +255,7 @@ INVERSION_STEP_TOLERANCE = 1.0e-6
 
 @njit(cache=True, error_model="numpy")
 def ce_velocity(target, p, guess=np.nan, damping=0.0, o=0):
-    """CE angular velocity ω_cc solving h(ω_cc) − c·ω_cc = target (MODEL.md §2.5), rad/s.
+    """CE angular velocity ω_cc solving h(ω_cc) − c·ω_cc = target (docs/model.md §2.5), rad/s.
 
     See :func:`ce_velocity_and_slope`, which this returns the first part of.
     """
@@ -264,7 +264,7 @@ def ce_velocity(target, p, guess=np.nan, damping=0.0, o=0):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def ce_velocity_and_slope(target, p, guess, damping, o=0):
-    """CE angular velocity ω_cc solving f(ω) = h(ω) − c·ω − target = 0 (MODEL.md §2.5), rad/s,
+    """CE angular velocity ω_cc solving f(ω) = h(ω) − c·ω − target = 0 (docs/model.md §2.5), rad/s,
     and the slope f'(ω_cc) = h'(ω_cc) − c, N·m·s/rad (−inf where ω_cc is clamped and does not
     respond to the target; the concentric slope at ω_cc = 0).
 
@@ -357,7 +357,7 @@ def ce_capacity(theta_cc, activation, p, o=0):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def ce_equation(stretch, theta_cc, activation, p, o=0):
-    """(capacity, target, c) of the CE equation h(ω) − c·ω = target (MODEL.md §2.5): capacity
+    """(capacity, target, c) of the CE equation h(ω) − c·ω = target (docs/model.md §2.5): capacity
     max(a, 0.01)·T_θ, target = k·max(s, 0)/capacity in N·m, c = β/capacity in N·m·s/rad."""
     capacity = ce_capacity(theta_cc, activation, p, o)
     return capacity, unit_torque(stretch, p, o) / capacity, p[o + CE_DAMPING] / capacity
@@ -385,7 +385,7 @@ def unit_ce_velocity_and_time_constant(stretch, theta_cc, activation, p, guess, 
 
 @njit(cache=True, error_model="numpy")
 def unit_time_constant(omega_cc, theta_cc, activation, p, o=0):
-    """Time constant τ = (a·T_θ·|h'(ω_cc)| + β)/k of the unit's CE equation, s (MODEL.md §5;
+    """Time constant τ = (a·T_θ·|h'(ω_cc)| + β)/k of the unit's CE equation, s (docs/model.md §5;
     β = ``ce_damping``, 0 by default).
 
     Returns +inf where the CE velocity is clamped (slack SE or ±ω_max), where it does not

@@ -17,7 +17,7 @@ MUSCLE_SOLVERS = {"rk4": fs.EXPLICIT_RK4, "sdirk2": fs.SDIRK2}
 
 @dataclass(frozen=True)
 class Coupling:
-    """The exchange between the two parts of the partitioned technique (MODEL.md §4).
+    """The exchange between the two parts of the partitioned technique (docs/model.md §4).
 
     Attributes
     ----------

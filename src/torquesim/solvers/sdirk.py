@@ -47,7 +47,7 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
 
     The stage state is θ_cc = θ_cc,known + sign·γh·w (sign d: +1 flexor, −1 extensor, whose CE
     angle moves against its shortening velocity) and its SE stretch s = s_known + γh·w; w must
-    satisfy the CE equation of MODEL.md §2.5 at that state:
+    satisfy the CE equation of docs/model.md §2.5 at that state:
 
         G(w) = max(a, 0.01)·T_θ(θ_cc)·h(w) − β·w − k·max(s, 0) = 0,    w ∈ [−ω_max, ω_max]
 

@@ -10,7 +10,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from ..io.atomic import write_atomic, write_text_atomic
-from .cases import smooth_case
+from .cases import smooth_case, smooth_chain_case
 from .compare import COLUMNS, Technique, observed_order, run_study
 from .report import (
     figure_png,
@@ -23,12 +23,13 @@ from .report import (
 SMOOTH_STEPS = (2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4)
 
 
-def smooth_case_orders(progress=None) -> dict[str, float]:
-    """Observed orders of the fixed-step techniques on :func:`smooth_case`."""
+def smooth_case_orders(progress=None, chain: bool = False) -> dict[str, float]:
+    """Observed orders of the fixed-step techniques on :func:`smooth_case` (the elbow) or,
+    with ``chain``, :func:`smooth_chain_case` (shoulder and elbow)."""
     from ..solvers import Coupling
     from ..solvers.coupling import IMEX
 
-    model, y0 = smooth_case()
+    model, y0 = smooth_chain_case() if chain else smooth_case()
     techniques = (Technique("monolithic", "monolithic"),
                   Technique("partitioned", "partitioned", Coupling()),
                   Technique("partitioned[body-first]", "partitioned", Coupling(order="body-first")),
@@ -68,7 +69,7 @@ def write_study(directory, model, *, steps, repeats=3, progress=None, model_sour
     if smooth is None:
         if progress:
             progress("smooth case orders")
-        smooth = smooth_case_orders()
+        smooth = smooth_case_orders(chain=model.n_joints > 1)
     write_text_atomic(directory / "results.csv", rows_to_csv(rows))
     for name, plot in (("convergence", plot_convergence), ("work_precision", plot_work_precision)):
         png = figure_png(plot(rows))

@@ -180,7 +180,7 @@ def write_sensitivity(directory, model, name: str, values, *, steps, repeats=3,
     directory.mkdir(parents=True, exist_ok=True)
     if progress:
         progress("smooth case orders")
-    smooth = smooth_case_orders()
+    smooth = smooth_case_orders(chain=as_chain(model).n_joints > 1)
     summary, figures = [], {}
     for value, varied in models:
         if progress:
