@@ -313,7 +313,8 @@ BAD_CHAINS = [
     ("[[segments]]\nname = 's'\nmass = -1.0\ncom_distance = 0.1\ninertia_about_joint = 0.1\n"
      "[[joints]]\nname = 'j'\ninitial_angle = 0.1\n", "segments[0].mass"),
     ("units = []\n[[segments]]\nname = 's'\nmass = 1.0\ncom_distance = 0.1\n"
-     "inertia_about_joint = 0.1\n[[segments]]\nname = 's'\nmass = 1.0\ncom_distance = 0.1\ninertia_about_joint = 0.1\n"
+     "inertia_about_joint = 0.1\n[[segments]]\nname = 's'\nmass = 1.0\ncom_distance = 0.1\n"
+     "inertia_about_joint = 0.1\n"
      "[[joints]]\nname = 'j'\ninitial_angle = 0.1\n[[joints]]\nname = 'k'\n"
      "initial_angle = 0.1\n", "segments[1].name"),
     ("[[segments]]\nname = 's'\nmass = 1.0\ncom_distance = 0.1\ninertia_about_joint = 0.1\n",

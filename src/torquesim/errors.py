@@ -49,7 +49,8 @@ def check_range(
 ) -> float:
     """Return ``float(value)`` or raise :class:`ModelError` naming ``field`` and the range.
 
-    Any real number is accepted (NumPy scalars included); booleans are not. The interval is ``[low, high]``; ``low_open``/``high_open`` exclude an end.
+    Any real number is accepted (NumPy scalars included); booleans are not. The interval is
+    ``[low, high]``; ``low_open``/``high_open`` exclude an end.
     """
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise ModelError(field, f"must be a number, got {value!r}")

@@ -25,6 +25,7 @@ from numba import njit
 from ..model.body import body_work_size, joint_accelerations, single_segment_acceleration
 from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
 from .rates import (
+    flat_arrays,
     joint_muscle_torques,
     unit_activation,
     unit_joint,
@@ -92,19 +93,17 @@ def _predict(preceding, preceding_before, this_before):
 
 @njit(cache=True, error_model="numpy")
 def check_body_kind(seg, general_body):
-    """Number of segments n, after checking it matches ``general_body``.
+    """Check that the number of segments matches ``general_body``.
 
     The loops take ``general_body=True`` for chains of two or more segments (the general
-    mass-matrix solve, a compiled call) and leave it out for one segment, where the
-    acceleration is one division inlined into the step loop. Left out, it is a compile-time
-    constant and Numba removes the general branch from that compilation: a call to a
-    compiled function over arrays costs reference counting even where it is not taken
-    (measured: 14 % of the elbow's run).
+    mass-matrix solve) and leave it out for one segment, where the acceleration is one
+    division. Left out, it is a compile-time constant and Numba removes the general branch
+    from that compilation: the general solve's loops over arrays cost reference counting even
+    where they are not taken (measured: 14 % of the elbow's run).
     """
     n = seg.shape[0]
     if n > 1 and not general_body:
         raise ValueError("a chain of two or more segments needs general_body=True")
-    return n
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -126,12 +125,8 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
     prediction from the previous step (see :func:`_predict`). ``general_body``: see
     :func:`check_body_kind`.
     """
-    n = check_body_kind(seg, general_body)
-    nu = units.shape[0]
-    width = profiles.shape[1]
-    units = units.ravel()
-    joints = joints.ravel()
-    profiles = profiles.ravel()
+    check_body_kind(seg, general_body)
+    n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     size = y0.shape[0]
     c = 2 * n
     y = y0.copy()
@@ -374,18 +369,14 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
     ``general_body``: see :func:`check_body_kind`.
     """
-    n = check_body_kind(seg, general_body)
+    check_body_kind(seg, general_body)
     order = int(coupling[ORDER])
     predictor = int(coupling[PREDICTOR])
     substeps = int(coupling[MUSCLE_SUBSTEPS])
     sweeps = int(coupling[ITERATIONS])
     tol = coupling[TOLERANCE]
     implicit_muscles = int(coupling[MUSCLE_SOLVER]) == SDIRK2
-    nu = units.shape[0]
-    width = profiles.shape[1]
-    units = units.ravel()
-    joints = joints.ravel()
-    profiles = profiles.ravel()
+    n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     size = y0.shape[0]
     c = 2 * n
     y = y0.copy()

@@ -68,6 +68,14 @@ def unit_activation(t, profiles, width, u):
 
 
 @njit(cache=True, error_model="numpy")
+def flat_arrays(seg, joints, units, profiles):
+    """(n joints, n units, profile row width, flat units, flat joints, flat profiles) of the
+    2-D packed arrays of :class:`~torquesim.model.chain.PackedChain`, as the loops read them."""
+    return (seg.shape[0], units.shape[0], profiles.shape[1], units.ravel(), joints.ravel(),
+            profiles.ravel())
+
+
+@njit(cache=True, error_model="numpy")
 def joint_muscle_torques(q, x, x_off, units, n_units, out, n_joints):
     """τ_j = Σ_{units on j} d·k·max(s, 0), N·m, into out[:n_joints]; θ_cc,u = x[x_off + u].
     (Outside the step loops; the loops sum :func:`unit_joint_torque` themselves.)"""
@@ -82,12 +90,7 @@ def joint_muscle_torques(q, x, x_off, units, n_units, out, n_joints):
 def chain_derivative(t, y, seg, joints, units, profiles):
     """dy/dt at time t (s) as a new array, for SciPy's solvers; takes the 2-D packed arrays of
     :class:`~torquesim.model.chain.PackedChain`."""
-    n = seg.shape[0]
-    nu = units.shape[0]
-    width = profiles.shape[1]
-    units = units.ravel()
-    joints = joints.ravel()
-    profiles = profiles.ravel()
+    n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     dy = np.empty(y.shape[0])
     torque = np.empty(n)
     joint_muscle_torques(y, y, 2 * n, units, nu, torque, n)

@@ -17,7 +17,13 @@ from ..model.torque_generator import (
     unit_torque,
 )
 from .fixed_step import RK4_STABILITY_LIMIT
-from .rates import joint_muscle_torques, unit_activation, unit_joint, unit_stretch
+from .rates import (
+    flat_arrays,
+    joint_muscle_torques,
+    unit_activation,
+    unit_joint,
+    unit_stretch,
+)
 
 
 @njit(cache=True)
@@ -26,12 +32,7 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
     torque T (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s) and time constant τ (s);
     and ``joint_out`` (rows × n × 2) with each joint's net muscle torque Σ d·T and end-stop
     torque T_p (N·m). Takes the 2-D arrays of :class:`~torquesim.model.chain.PackedChain`."""
-    n = seg.shape[0]
-    nu = units.shape[0]
-    width = profiles.shape[1]
-    units = units.ravel()
-    joints = joints.ravel()
-    profiles = profiles.ravel()
+    n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     torque = np.empty(n)
     for i in range(time.shape[0]):
         y = states[i]
