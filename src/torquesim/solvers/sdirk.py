@@ -21,7 +21,7 @@ from ..model.torque_generator import (
 )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity_activation, p,
                        o=0):
     """Residual G(w) and dG/dw of the implicit CE equation (see unit_implicit_ce_velocity)."""
