@@ -78,7 +78,7 @@ def test_bad_model_file_names_the_key(tmp_path, capsys):
 
 def test_blow_up_exits_1_without_output(tmp_path, capsys):
     code, _, err = run(["simulate", "--step", "0.1", "--out", str(tmp_path / "o.csv")], capsys)
-    assert code == 1 and "smaller step" in err
+    assert code == 1 and "use a step ≤" in err and "checked" in err
     assert not (tmp_path / "o.csv").exists()
 
 

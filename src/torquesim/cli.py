@@ -76,7 +76,10 @@ def cli():
                    ".manifest.json beside it.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Write a figure of angle, torques and activations (.png, .pdf, .svg).")
-def simulate(model_path, method, step, duration, out_path, plot_path):
+@click.option("--tolerance", type=click.FloatRange(0.0, 180.0), default=0.5, show_default=True,
+              help="Fixed-step methods: estimate the max angle error by step halving (two more "
+                   "runs' work) and warn above this many degrees; 0 turns the estimate off.")
+def simulate(model_path, method, step, duration, out_path, plot_path, tolerance):
     """Simulate the model and print a summary (or write --out / --plot)."""
     from .io.model_file import load_model
     from .solvers import simulate as run
@@ -84,7 +87,9 @@ def simulate(model_path, method, step, duration, out_path, plot_path):
     _check_output(out_path, (".csv", ".sto", ".mot"), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
     model = load_model(model_path)
-    result = run(model, method, step, duration=duration)
+    fixed = method != "reference"
+    result = run(model, method, step, duration=duration,
+                 tolerance=math.radians(tolerance) if fixed and tolerance > 0 else None)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
     if out_path:
@@ -111,10 +116,16 @@ def simulate(model_path, method, step, duration, out_path, plot_path):
         f"rhs evals     body {result.cost.rhs_body}, muscle {result.cost.rhs_muscle}",
         f"wall time     {result.cost.wall_time * 1e3:.1f} ms",
     ]
+    estimate = result.settings.get("estimated_error_rad")
+    if estimate is not None:
+        lines.append(f"error est.    {math.degrees(estimate):.3g} deg max (step halving; "
+                     f"tolerance {tolerance:g} deg)")
     report = result.stability
     if report is not None:
         limit = ("muscles implicit, no step limit from tau" if math.isinf(report.limit)
-                 else f"largest safe step {report.largest_safe_step * 1e3:.3g} ms")
+                 else f"limit 2.785 tau_min = {report.largest_safe_step * 1e3:.3g} ms"
+                 if report.verified_step is None else
+                 f"checked safe step {report.largest_safe_step * 1e3:.4g} ms")
         lines.append(f"stability     max step/tau {report.max_step_ratio:.3g} "
                      f"({report.unit}); {limit}")
     if out_path:

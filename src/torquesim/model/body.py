@@ -136,7 +136,9 @@ def passive_energy(theta, b, o=0):
 #: Column of a packed joint row holding the angle offset added to q_k in φ_k (the chain's
 #: base angle for the first joint, 0 for the others), and the joint row size.
 ZERO_OFFSET = 4
-JOINT_ROW_SIZE = 5
+#: Column of a packed joint row holding the largest physically possible joint speed, rad/s.
+SPEED_LIMIT = 5
+JOINT_ROW_SIZE = 6
 #: Columns of the packed segment array (torquesim.model.chain.ChainModel.segment_array).
 SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN = range(4)
 

@@ -39,6 +39,7 @@ from .body import (
     SEG_INERTIA_COLUMN,
     SEG_LENGTH_COLUMN,
     SEG_MOMENT_COLUMN,
+    SPEED_LIMIT,
     ZERO_OFFSET,
     passive_torque,
 )
@@ -49,11 +50,13 @@ MAX_SEGMENTS = 6
 SEG_INERTIA, SEG_MOMENT, SEG_LENGTH, SEG_GRAVITY = (SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN,
                                                     SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN)
 SEGMENT_ARRAY_SIZE = 4
-JOINT_ARRAY_SIZE = JOINT_ROW_SIZE  # end stops and zero offset (torquesim.model.body)
+JOINT_ARRAY_SIZE = JOINT_ROW_SIZE  # end stops, zero offset, speed limit (model.body)
 #: Extra columns of the packed unit rows (after the TorqueGeneratorUnit array).
 UNIT_JOINT, UNIT_DIRECTION = 18, 19
 UNIT_ROW_SIZE = 20
 FLEXOR, EXTENSOR = 1, -1
+#: A joint speed above this many times its fastest unit's ω_max is physically impossible.
+SPEED_LIMIT_FACTOR = 10.0
 
 
 def _check_name(field_name: str, value) -> str:
@@ -260,7 +263,7 @@ class PackedChain(NamedTuple):
     """Plain float arrays handed to the compiled solvers.
 
     segments : (n, 4)  A_k, B_k, L_k, g·B_k (see :meth:`ChainModel.pack`)
-    joints : (n, 5)    end stops and zero offset
+    joints : (n, 6)    end stops, zero offset and speed limit
     units : (U, 20)    TorqueGeneratorUnit array, then joint index and direction
     activations : (U, P)  packed activation profiles [a_0, n, (t_on, r, level) × n]
     """
@@ -427,13 +430,23 @@ class ChainModel:
         return out
 
     def joint_array(self) -> np.ndarray:
-        """(n, 5): each joint's end stops, and the offset added to q_k in φ_k (the base angle
-        for the first joint, 0 for the others)."""
+        """(n, 6): each joint's end stops, the offset added to q_k in φ_k (the base angle for
+        the first joint, 0 for the others) and its speed limit (:meth:`speed_limits`)."""
         out = np.zeros((self.n_joints, JOINT_ARRAY_SIZE))
         for k, joint in enumerate(self.joints):
             out[k, :ZERO_OFFSET] = joint.endstop_array()
         out[0, ZERO_OFFSET] = self.base_angle
+        out[:, SPEED_LIMIT] = self.speed_limits()
         return out
+
+    def speed_limits(self) -> np.ndarray:
+        """The largest physically possible speed of each joint, rad/s:
+        :data:`SPEED_LIMIT_FACTOR` × the fastest ω_max of its units. A joint turning faster
+        than any of its units can shorten, ten times over, is a numerical failure, not a
+        motion; the solvers stop there (and at an angle more than a full turn beyond the end
+        stops)."""
+        return np.array([SPEED_LIMIT_FACTOR * max(u.parameters.max_velocity for u in self.units
+                                                  if u.joint == j.name) for j in self.joints])
 
     def unit_array(self) -> np.ndarray:
         out = np.zeros((self.n_units, UNIT_ROW_SIZE))

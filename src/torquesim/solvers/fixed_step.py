@@ -22,7 +22,15 @@ import math
 import numpy as np
 from numba import njit
 
-from ..model.body import body_work_size, joint_accelerations, single_segment_acceleration
+from ..model.body import (
+    ENDSTOP_HIGH,
+    ENDSTOP_LOW,
+    JOINT_ROW_SIZE,
+    SPEED_LIMIT,
+    body_work_size,
+    joint_accelerations,
+    single_segment_acceleration,
+)
 from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
 from .rates import (
     flat_arrays,
@@ -38,11 +46,9 @@ from .sdirk import unit_implicit_ce_velocity
 STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
     UNIT_SOLVES = range(9)
 STATS_SIZE = 9
-# Status codes.
+# Status codes. DIVERGED: the state left the physically possible range (a joint more than a
+# full turn beyond its end stops, or faster than its speed limit, ChainModel.speed_limits).
 OK, NON_FINITE, DIVERGED = 0, 1, 2
-#: |q̇| above this (rad/s) at any joint counts as divergence: no human joint turns at
-#: 1000 rad/s.
-DIVERGENCE_OMEGA = 1.0e3
 #: Real-axis stability limit of classical RK4: |λ|·h ≤ 2.785 (the boundary of its region).
 RK4_STABILITY_LIMIT = 2.785293563405282
 
@@ -61,13 +67,17 @@ _SCRATCH_ROWS = 20
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _check_state(y, n):
-    """OK, NON_FINITE or DIVERGED (|q̇| > DIVERGENCE_OMEGA at some joint)."""
+def _check_state(y, n, joints):
+    """OK, NON_FINITE or DIVERGED: some joint more than a full turn beyond its end stops, or
+    faster than its speed limit (the physically possible range)."""
     for i in range(y.shape[0]):
         if not math.isfinite(y[i]):
             return NON_FINITE
     for k in range(n):
-        if abs(y[n + k]) > DIVERGENCE_OMEGA:
+        o = k * JOINT_ROW_SIZE
+        if (y[k] < joints[o + ENDSTOP_LOW] - 2.0 * math.pi
+                or y[k] > joints[o + ENDSTOP_HIGH] + 2.0 * math.pi
+                or abs(y[n + k]) > joints[o + SPEED_LIMIT]):
             return DIVERGED
     return OK
 
@@ -191,7 +201,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
         stats[NFEV_BODY] += 4
         stats[NFEV_MUSCLE] += 4
         stats[STEPS] = step + 1
-        status = _check_state(y, n)
+        status = _check_state(y, n, joints)
         if status != OK:
             stats[STATUS] = status
             return
@@ -459,7 +469,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
             y[i] = y1[i]
             out[step + 1, i] = y[i]
         stats[STEPS] = step + 1
-        status = _check_state(y, n)
+        status = _check_state(y, n, joints)
         if status != OK:
             stats[STATUS] = status
             return

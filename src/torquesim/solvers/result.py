@@ -68,15 +68,16 @@ class StabilityReport:
 
     ``max_step_ratio`` is the largest step/τ seen (τ: a unit's CE time constant), at time
     ``time`` in unit ``unit``. ``exceeded`` is True when it passed the RK4 limit 2.785: the
-    motion is then probably wrong although bounded. ``largest_safe_step`` (s) is
-    2.785·min τ; when the limit was exceeded the τ seen belong to a wrong motion, so the
-    suggestion is also capped at half the step used."""
+    motion is then probably wrong although bounded. ``largest_safe_step`` (s) is the step
+    found by running (``verified_step``, see :func:`torquesim.solvers.simulate.verified_step`)
+    when the run failed or broke the limit; otherwise the estimate 2.785·min τ of this run."""
 
     max_step_ratio: float
     time: float
     unit: str
     step: float
     limit: float = RK4_STABILITY_LIMIT
+    verified_step: float | None = None
 
     @property
     def exceeded(self) -> bool:
@@ -84,17 +85,24 @@ class StabilityReport:
 
     @property
     def largest_safe_step(self) -> float:
+        if self.verified_step is not None:
+            return self.verified_step
         if self.max_step_ratio <= 0.0 or math.isinf(self.limit):
             return math.inf
         safe = self.limit * self.step / self.max_step_ratio
         return min(safe, 0.5 * self.step) if self.exceeded else safe
 
     def message(self) -> str:
-        return (f"step {self.step * 1e3:g} ms exceeds the RK4 stability limit in the {self.unit} "
-                f"unit at t = {self.time:.4f} s (step/τ = {self.max_step_ratio:.3g} > "
-                f"{RK4_STABILITY_LIMIT:.3f}); the motion is probably wrong although bounded. "
-                f"Use a step ≤ {self.largest_safe_step * 1e3:.3g} ms (estimated on this run's "
-                "motion) or method 'reference'.")
+        head = (f"step {self.step * 1e3:g} ms exceeds the RK4 stability limit in the "
+                f"{self.unit} unit at t = {self.time:.4f} s (step/τ = {self.max_step_ratio:.3g} "
+                f"> {RK4_STABILITY_LIMIT:.3f}); the motion is probably wrong although bounded. ")
+        safe = self.largest_safe_step
+        if self.verified_step == 0.0:
+            return head + "No step down to 1/256 of it passed: use method 'imex' or 'reference'."
+        how = ("a run at that step was checked" if self.verified_step is not None
+               else "estimated on this run's motion")
+        return (head + f"Use a step ≤ {safe * 1e3:.4g} ms ({how}) or method 'imex' "
+                "(implicit muscles) or 'reference'.")
 
 
 @dataclass(frozen=True)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+from dataclasses import replace
 
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK45, Radau
@@ -52,6 +53,8 @@ def simulate(
     output_step: float = DEFAULT_OUTPUT_STEP,
     initial_state=None,
     check: bool = True,
+    advise: bool = True,
+    tolerance: float | None = None,
 ) -> SimulationResult:
     """Simulate ``model`` (default: the built-in curl) with one solution technique.
 
@@ -74,8 +77,18 @@ def simulate(
     initial_state : array, optional
         y(0) = (q, q̇, θ_cc of every unit) replacing the static-equilibrium start.
     check : bool
-        Raise :class:`SimulationError` if the state goes non-finite or diverges (default);
-        otherwise return the failed result with ``status == "failed"``.
+        Raise :class:`SimulationError` if the state goes non-finite or leaves the physically
+        possible range (default); otherwise return the failed result with
+        ``status == "failed"``.
+    advise : bool
+        Fixed-step runs that fail or break the stability limit: find the step to recommend by
+        running it (:func:`verified_step`), so the advice holds when followed. Default True;
+        studies that try many steps on purpose turn it off.
+    tolerance : float, optional
+        Fixed-step runs: estimate the max angle error by step halving (the run repeated at h/2;
+        error ≈ max|q_h − q_h/2|·2^p/(2^p − 1), p the technique's order,
+        :func:`nominal_order`) and warn when it exceeds ``tolerance`` (rad). It costs two more
+        runs' worth of work. The estimate is in ``result.settings["estimated_error_rad"]``.
     """
     model = as_chain(default_model() if model is None else model)
     if not isinstance(method, str):
@@ -95,7 +108,15 @@ def simulate(
             if not coupling.implicit_muscles:
                 raise ModelError("coupling.muscle_solver", "method 'imex' needs an implicit "
                                  "muscle solver; allowed: sdirk2")
-        result = _fixed_step(model, packed, y0, method, step, coupling or Coupling())
+        coupling = coupling or Coupling()
+        result = _fixed_step(model, packed, y0, method, step, coupling)
+        if advise and (not result.success or result.stability.exceeded):
+            result = _with_advice(result, verified_step(model, packed, y0, method, step,
+                                                        coupling))
+        if tolerance is not None and result.success:
+            check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
+            result = _with_error_estimate(result, model, packed, y0, method, coupling,
+                                          tolerance)
     elif method == "reference" or method.startswith("scipy:"):
         name = "Radau" if method == "reference" else method.split(":", 1)[1]
         if name not in SCIPY_METHODS:
@@ -148,11 +169,11 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     status, message = "success", ""
     if stats[fs.STATUS] != fs.OK:
         what = "went non-finite" if stats[fs.STATUS] == fs.NON_FINITE else \
-            f"diverged (|ω| > {fs.DIVERGENCE_OMEGA:g} rad/s)"
+            _out_of_range(model, out[done])
         status = "failed"
         message = (f"{label} with step {step * 1e3:g} ms: the state {what} at t = "
-                   f"{times[-1]:.6g} s; use a smaller step (largest stable step ≈ "
-                   f"{stability.largest_safe_step * 1e3:.3g} ms) or method 'reference'")
+                   f"{times[-1]:.6g} s: the step is too large for this motion; "
+                   f"{_advice_text(stability.largest_safe_step)}")
     elif stability.exceeded:
         message = stability.message()
     else:
@@ -165,6 +186,108 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
         settings["coupling"] = coupling.__dict__.copy()
     return SimulationResult(model, packed, times, out[: done + 1], label, float(step), cost,
                             stability, status, message, settings)
+
+
+def _out_of_range(model: ChainModel, y) -> str:
+    """Which joint left the physically possible range in state ``y``, in words."""
+    limits = model.speed_limits()
+    n = model.n_joints
+    for k, joint in enumerate(model.joints):
+        angle = math.degrees(y[k])
+        if abs(y[n + k]) > limits[k]:
+            return (f"left the physically possible range ({joint.coordinate} speed "
+                    f"{y[n + k]:.3g} rad/s, beyond the limit {limits[k]:g} rad/s)")
+        if not (joint.endstop_lower_angle - 2 * math.pi <= y[k]
+                <= joint.endstop_upper_angle + 2 * math.pi):
+            return (f"left the physically possible range ({joint.coordinate} = {angle:.4g}°, "
+                    "more than a full turn beyond its end stops)")
+    return "left the physically possible range"
+
+
+def _advice_text(safe_step: float, verified: bool = False) -> str:
+    if not math.isfinite(safe_step) or safe_step <= 0.0:
+        return "use method 'imex' (implicit muscles) or 'reference'"
+    how = " (a run at that step was checked)" if verified else ""
+    return (f"use a step ≤ {safe_step * 1e3:.4g} ms{how} or method 'imex' (implicit muscles) "
+            "or 'reference'")
+
+
+#: The advised step must agree with a run at half of it to this (rad, max over the motion).
+ADVICE_AGREEMENT = 1.0e-3
+#: How many halvings of the step the advice search tries.
+ADVICE_HALVINGS = 8
+
+
+def divisor_step(duration: float, step: float) -> float:
+    """The largest step ≤ ``step`` that divides ``duration``, s."""
+    return duration / math.ceil(duration / step - 1e-9)
+
+
+def _max_difference(coarse, fine) -> float:
+    """Max |q_coarse − q_fine| (rad) on the coarse grid (the fine step divides it)."""
+    k = int(round(coarse.step / fine.step))
+    n = min(coarse.time.size, (fine.time.size - 1) // k + 1)
+    return float(np.max(np.abs(coarse.q[:n] - fine.q[::k][:n])))
+
+
+def verified_step(model, packed, y0, method, step, coupling) -> float | None:
+    """The step to recommend after a fixed-step run at ``step`` failed or broke the stability
+    limit, found by running: the largest of step/2, step/4, … (made to divide the duration)
+    whose run succeeds within the stability limit and agrees with a run at half that step to
+    :data:`ADVICE_AGREEMENT` rad. None if no step down to step/2^8 does."""
+    h = step
+    for _ in range(ADVICE_HALVINGS):
+        h = divisor_step(model.duration, h / 2)
+        trial = _fixed_step(model, packed, y0, method, h, coupling)
+        if not trial.success or trial.stability.exceeded:
+            continue
+        half = _fixed_step(model, packed, y0, method, h / 2, coupling)
+        if half.success and _max_difference(trial, half) <= ADVICE_AGREEMENT:
+            return h
+    return None
+
+
+def _with_advice(result: SimulationResult, safe: float | None) -> SimulationResult:
+    """``result`` with its stability report and message carrying the verified advice."""
+    stability = replace(result.stability, verified_step=safe if safe is not None else 0.0)
+    if result.success:
+        message = stability.message()
+    else:
+        head = result.message.split("; use a step")[0].split("; use method")[0]
+        message = f"{head}; {_advice_text(stability.largest_safe_step, safe is not None)}"
+    return replace(result, stability=stability, message=message)
+
+
+def nominal_order(method: str, coupling: Coupling) -> int:
+    """Global order of accuracy of a fixed-step technique on smooth problems (measured in the
+    tests): monolithic RK4 4; partitioned exchange with a zero-order hold and one sweep 1;
+    linear extrapolation or iterated exchange 2; SDIRK2 muscles at most 2."""
+    if method == "monolithic" or coupling.order == "every-stage":
+        return 4
+    order = 2 if (coupling.predictor == "linear" or coupling.iterations > 1) else 1
+    return min(order, 2) if coupling.implicit_muscles else order
+
+
+def _with_error_estimate(result, model, packed, y0, method, coupling, tolerance):
+    """``result`` with the step-halving error estimate, and a warning above ``tolerance``."""
+    p = nominal_order(method, coupling)
+    half = _fixed_step(model, packed, y0, method, result.step / 2, coupling)
+    estimate = (_max_difference(result, half) * 2**p / (2**p - 1) if half.success
+                else math.inf)
+    settings = {**result.settings, "estimated_error_rad": estimate, "tolerance_rad": tolerance}
+    message = result.message
+    if estimate > tolerance:
+        shrink = (tolerance / estimate) ** (1.0 / p) if math.isfinite(estimate) else 0.0
+        if result.stability.verified_step is not None:  # the stability advice stands
+            advice = "follow the stability advice above"
+        elif shrink > 0:
+            advice = f"a step ≤ {result.step * shrink * 1e3:.3g} ms should meet it (order {p})"
+        else:
+            advice = "use a smaller step or method 'reference'"
+        warning = (f"estimated max angle error {math.degrees(estimate):.3g}° (step halving) "
+                   f"exceeds the tolerance {math.degrees(tolerance):.3g}°: {advice}")
+        message = f"{message} Also: {warning}" if message else warning
+    return replace(result, settings=settings, message=message)
 
 
 #: A fixed step longer than this fraction of the shortest activation ramp does not resolve the

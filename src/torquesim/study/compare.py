@@ -119,7 +119,7 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
         if progress:
             what = f"tol {setting:g}" if tech.adaptive else f"h {setting * 1e3:g} ms"
             progress(f"[{i + 1}/{len(jobs)}] {tech.name} {what}")
-        kwargs = dict(initial_state=initial_state, check=False)
+        kwargs = dict(initial_state=initial_state, check=False, advise=False)
         if tech.adaptive:
             kwargs.update(rtol=setting, atol=setting * 1e-3, output_step=GRID)
         else:
