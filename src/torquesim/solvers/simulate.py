@@ -61,7 +61,7 @@ def simulate(
     Parameters
     ----------
     model : ChainModel or ElbowModel, optional
-        Any planar chain (:func:`torquesim.load_model`, :func:`torquesim.preset`); an
+        Any planar chain (:func:`torquesim.load_model` of a file or ``"builtin:NAME"``); an
         ElbowModel is simulated as its one-segment chain.
     method : {"monolithic", "partitioned", "reference"} or "scipy:NAME"
         ``monolithic``: classical RK4 on the whole state. ``partitioned``: each part with its
