@@ -7,7 +7,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
-from scipy.stats import linregress
 
 import torquesim as ts
 from torquesim.model.body import (
@@ -18,7 +17,7 @@ from torquesim.model.body import (
 from torquesim.solvers.rates import chain_derivative
 from torquesim.study import smooth_chain_case
 
-from .conftest import chain_energy
+from .conftest import chain_energy, measured_order
 
 PRESETS = ("elbow-curl", "knee-extension", "arm-raise")
 
@@ -222,17 +221,6 @@ def test_smooth_chain_case_is_smooth():
     assert np.ptp(r.q, axis=0).min() > math.radians(5)
 
 
-def _chain_order(method, coupling, steps):
-    model, y0 = smooth_chain_case()
-    ref = ts.simulate(model, "reference", rtol=1e-12, atol=1e-14, initial_state=y0,
-                      output_step=0.01)
-    errors = []
-    for h in steps:
-        r = ts.simulate(model, method, h, initial_state=y0, coupling=coupling)
-        errors.append(np.max(np.abs(r.q[::int(round(0.01 / h))] - ref.q)))
-    return linregress(np.log(steps), np.log(errors)).slope
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("method, coupling, steps, low, high", [
     ("monolithic", None, [1e-3, 5e-4, 2.5e-4, 1.25e-4], 3.5, 4.5),
@@ -240,7 +228,7 @@ def _chain_order(method, coupling, steps):
     ("imex", None, [1e-3, 5e-4, 2.5e-4, 1.25e-4], 1.8, 2.2),
 ])
 def test_orders_on_the_smooth_chain_case(method, coupling, steps, low, high):
-    assert low < _chain_order(method, coupling, steps) < high
+    assert low < measured_order(smooth_chain_case(), method, coupling, steps) < high
 
 
 _FROZEN = np.load(__import__("pathlib").Path(__file__).parent / "data"

@@ -4,12 +4,11 @@ import math
 
 import numpy as np
 import pytest
-from scipy.stats import linregress
 
 import torquesim as ts
 from torquesim.study import smooth_case
 
-from .conftest import ce_power, chain_energy, max_angle_error
+from .conftest import ce_power, chain_energy, max_angle_error, measured_order
 
 # MODEL.md §3: converged default curl, θ (deg) at t = 0, 0.5, ..., 3.0 s.
 GOLDEN_DEG = [10.0000, 37.5343, 105.9319, 137.8826, 109.2625, 38.6858, 11.8909]
@@ -95,15 +94,7 @@ def test_every_stage_exchange_is_monolithic_to_round_off(model):
 
 
 def _order(method, coupling, steps):
-    m, y0 = smooth_case()
-    ref = ts.simulate(m, "reference", rtol=1e-12, atol=1e-14, initial_state=y0,
-                      output_step=0.01)
-    errors = []
-    for h in steps:
-        r = ts.simulate(m, method, h, initial_state=y0, coupling=coupling)
-        k = int(round(0.01 / h))
-        errors.append(np.max(np.abs(r.q[::k] - ref.q)))
-    return linregress(np.log(steps), np.log(errors)).slope
+    return measured_order(smooth_case(), method, coupling, steps)
 
 
 @pytest.mark.slow
