@@ -202,7 +202,7 @@ def test_resume_after_interruption_is_at_least_as_good(synthetic_target, tmp_pat
     problem = FitProblem(synthetic_target)
     first = run_fit(problem, QUICK, checkpoint=checkpoint, should_stop=stop_after_five)
     assert first.interrupted and first.generations_done == 5
-    state = load_checkpoint(checkpoint, FitProblem(synthetic_target))
+    state = load_checkpoint(checkpoint, FitProblem(synthetic_target), QUICK)
     assert float(state["best_score"]) == first.score
     resumed = run_fit(FitProblem(synthetic_target), QUICK, checkpoint=checkpoint, resume=state)
     assert not resumed.interrupted and resumed.generations_done == QUICK.generations
@@ -210,13 +210,41 @@ def test_resume_after_interruption_is_at_least_as_good(synthetic_target, tmp_pat
     assert resumed.simulations > first.simulations
 
 
+TINY = SearchSettings(generations=1, polish_simulations=0, population_per_parameter=2)
+
+
 def test_checkpoint_of_another_fit_is_refused(synthetic_target, tmp_path):
     checkpoint = tmp_path / "ck.npz"
-    run_fit(FitProblem(synthetic_target), SearchSettings(generations=1, polish_simulations=0,
-                                                         population_per_parameter=2),
-            checkpoint=checkpoint)
+    run_fit(FitProblem(synthetic_target), TINY, checkpoint=checkpoint)
     with pytest.raises(ts.ModelError, match="another fit"):
-        load_checkpoint(checkpoint, FitProblem(synthetic_target, step=2e-3))
+        load_checkpoint(checkpoint, FitProblem(synthetic_target, step=2e-3), TINY)
+    other_seed = SearchSettings(seed=2, generations=1, polish_simulations=0,
+                                population_per_parameter=2)
+    with pytest.raises(ts.ModelError, match="seed = 1, not 2"):
+        load_checkpoint(checkpoint, FitProblem(synthetic_target), other_seed)
+    longer = SearchSettings(generations=5, polish_simulations=0, population_per_parameter=2)
+    assert load_checkpoint(checkpoint, FitProblem(synthetic_target), longer)["seed"] == 1
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda data: b"", "empty: not a torquesim checkpoint"),
+    (lambda data: data[: len(data) // 2], "corrupt"),
+    (lambda data: b"time,angle\n0,1\n", "not a zip file"),
+    (lambda data: None, "not a torquesim checkpoint"),  # a valid .npz of something else
+])
+def test_damaged_or_foreign_checkpoints_are_one_line_errors(synthetic_target, tmp_path,
+                                                            damage, message):
+    checkpoint = tmp_path / "ck.npz"
+    run_fit(FitProblem(synthetic_target), TINY, checkpoint=checkpoint)
+    data = damage(checkpoint.read_bytes())
+    if data is None:
+        np.savez(checkpoint, meta=np.array('{"version": 1}'), weights=np.zeros(3))
+    else:
+        checkpoint.write_bytes(data)
+    with pytest.raises(ts.ModelError) as info:
+        load_checkpoint(checkpoint, FitProblem(synthetic_target), TINY)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert info.value.field == "resume"
 
 
 @pytest.mark.parametrize("space_args, field", [

@@ -328,7 +328,7 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
         if not checkpoint.is_file():
             raise ModelError("--resume", f"no checkpoint {str(checkpoint)!r}; allowed: the "
                              "--out directory of an earlier fit")
-        state = load_checkpoint(checkpoint, problem)
+        state = load_checkpoint(checkpoint, problem, settings)
     created = not out.exists()
     out.mkdir(exist_ok=True)
     stop = []

@@ -106,18 +106,49 @@ def save_checkpoint(path, state: dict) -> None:
     write_atomic(path, write)
 
 
-def load_checkpoint(path, problem: FitProblem) -> dict:
-    """Read a checkpoint written by :func:`save_checkpoint` for this problem."""
+#: What a checkpoint must hold to be resumed.
+CHECKPOINT_KEYS = ("version", "fingerprint", "seed", "population_per_parameter", "stage",
+                   "generations_done", "polish_done", "simulations", "failed", "best_score",
+                   "best_x", "initial_x", "population", "history")
+
+
+def load_checkpoint(path, problem: FitProblem, settings: SearchSettings) -> dict:
+    """Read a checkpoint written by :func:`save_checkpoint` for this problem and these search
+    settings (the seed and population size included; a larger generation or polish budget may
+    differ). Never unpickles; an empty, truncated or foreign file is a one-line
+    :class:`ModelError` saying which."""
+    name = repr(str(path))
     try:
-        with np.load(path) as data:
+        with open(path, "rb") as fh:
+            magic = fh.read(4)
+    except OSError as exc:
+        raise ModelError("resume", f"cannot read checkpoint {name}: {exc.strerror or exc}") \
+            from None
+    if magic != b"PK\x03\x04":  # every .npz is a zip archive
+        raise ModelError("resume", f"{name} is {'empty' if not magic else 'not a zip file'}: "
+                         "not a torquesim checkpoint; allowed: the fit_checkpoint.npz of an "
+                         "earlier fit")
+    try:
+        with np.load(path, allow_pickle=False) as data:
             state = json.loads(str(data["meta"]))
             state.update({k: data[k] for k in data.files if k != "meta"})
-    except (OSError, ValueError, KeyError) as exc:
-        raise ModelError("resume", f"cannot read checkpoint {str(path)!r}: {exc}") from None
-    if state.get("version") != CHECKPOINT_VERSION or state.get("fingerprint") != \
-            fingerprint(problem):
-        raise ModelError("resume", f"checkpoint {str(path)!r} belongs to another fit (target, "
+    except Exception as exc:  # noqa: BLE001 - zip, npy and JSON damage all mean "corrupt"
+        raise ModelError("resume", f"checkpoint {name} is corrupt or not a torquesim "
+                         f"checkpoint ({type(exc).__name__}); allowed: the fit_checkpoint.npz "
+                         "of an earlier fit, or start again without --resume") from None
+    missing = [k for k in CHECKPOINT_KEYS if k not in state]
+    if missing:
+        raise ModelError("resume", f"{name} is not a torquesim checkpoint (no "
+                         f"{', '.join(missing[:3])}); allowed: the fit_checkpoint.npz of an "
+                         "earlier fit")
+    if state["version"] != CHECKPOINT_VERSION or state["fingerprint"] != fingerprint(problem):
+        raise ModelError("resume", f"checkpoint {name} belongs to another fit (target, "
                          "model, bounds, method or step differ); allowed: the same settings")
+    for key in ("seed", "population_per_parameter"):
+        if state[key] != getattr(settings, key):
+            raise ModelError("resume", f"checkpoint {name} was made with {key} = "
+                             f"{state[key]}, not {getattr(settings, key)}; allowed: the same "
+                             f"{key} (or start again)")
     return state
 
 
@@ -175,6 +206,8 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
             _explain_failed_start(problem, guess)
         say(f"initial guess (inverse dynamics): {guess_score:.3f} deg RMS")
         state = {"version": CHECKPOINT_VERSION, "fingerprint": fingerprint(problem),
+                 "seed": settings.seed,
+                 "population_per_parameter": settings.population_per_parameter,
                  "stage": "search", "generations_done": 0, "polish_done": 0,
                  "simulations": problem.simulations, "failed": problem.failed_simulations,
                  "initial_score": guess_score, "initial_x": guess, "best_x": guess,
