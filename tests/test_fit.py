@@ -89,6 +89,14 @@ def test_mot_target_honours_in_degrees(tmp_path, flag, scale):
     ("a,b\n0,1\n", ".csv", None, r"no 'time' column"),
     ("time\ta\n0\t1\n", ".mot", "a", r"no 'endheader'"),
     ("inDegrees=yes\nendheader\ntime\ta\n0\t1\n0.1\t2\t3\n", ".mot", "a", r"line 5: 3 cells"),
+    ("nRows=9\ninDegrees=yes\nendheader\ntime\ta\n" + "".join(
+        f"{0.01 * i}\t{i}\n" for i in range(6)), ".mot", "a", r"nRows=9 but the file has 6"),
+    ("nColumns=3\ninDegrees=yes\nendheader\ntime\ta\n" + "".join(
+        f"{0.01 * i}\t{i}\n" for i in range(6)), ".mot", "a", r"nColumns=3 but the data has 2"),
+    ("inDegrees=maybe\nendheader\ntime\ta\n0\t1\n", ".mot", "a",
+     r"line 1: inDegrees='maybe'; allowed yes or no"),
+    ("time,a\n" + "".join(f"{0.01 * i},{100 * i}\n" for i in range(6)), ".csv", "a",
+     r"column 'a': 500° is more than a full turn"),
 ])
 def test_bad_target_files_name_file_line_and_column(tmp_path, text, suffix, column, match):
     path = _write(tmp_path / f"bad{suffix}", text)

@@ -69,12 +69,23 @@ def read_angle_history(path, column: str | None = None,
                          f"{getattr(exc, 'strerror', None) or exc}") from None
     suffix = path.suffix.lower()
     first = 0
+    declared = {}
     if suffix in (".mot", ".sto"):
         in_degrees = None
         for i, line in enumerate(lines):
             key = line.strip().lower().replace(" ", "")
             if key.startswith("indegrees="):
-                in_degrees = key.split("=", 1)[1] == "yes"
+                value = key.split("=", 1)[1]
+                if value not in ("yes", "no"):
+                    raise _fail(path, f"line {i + 1}: inDegrees={value!r}; allowed yes or no")
+                in_degrees = value == "yes"
+            for field in ("nrows", "ncolumns"):
+                if key.startswith(field + "="):
+                    try:
+                        declared[field] = int(key.split("=", 1)[1])
+                    except ValueError:
+                        raise _fail(path, f"line {i + 1}: {line.strip()!r} is not a whole "
+                                          "number") from None
             if key == "endheader":
                 first = i + 1
                 break
@@ -116,7 +127,18 @@ def read_angle_history(path, column: str | None = None,
         if len(time) > 1 and time[-1] <= time[-2]:
             raise _fail(path, f"line {line_no}, column {names[t_col]!r}: time "
                               f"{time[-1]!r} does not increase (previous {time[-2]!r})")
+    if "nrows" in declared and declared["nrows"] != len(time):
+        raise _fail(path, f"header nRows={declared['nrows']} but the file has {len(time)} data "
+                          "rows; allowed: a header that matches its data (a truncated file?)")
+    if "ncolumns" in declared and declared["ncolumns"] != len(names):
+        raise _fail(path, f"header nColumns={declared['ncolumns']} but the data has "
+                          f"{len(names)} columns; allowed: a header that matches its data")
     if len(time) < MIN_SAMPLES:
         raise _fail(path, f"{len(time)} samples; allowed at least {MIN_SAMPLES}")
     angle_rad = np.radians(angle) if (units or "deg") == "deg" else np.array(angle)
+    worst = float(np.max(np.abs(angle_rad)))
+    if worst > 2 * math.pi:
+        raise _fail(path, f"column {names[a_col]!r}: {math.degrees(worst):.4g}° is more than a "
+                          "full turn: not a joint angle in these units; allowed |angle| ≤ 360° "
+                          "(check --units or the file's inDegrees)")
     return np.array(time), angle_rad, names[a_col]
