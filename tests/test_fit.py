@@ -313,3 +313,68 @@ def test_fit_cli_bad_input_is_one_line_exit_2(tmp_path, capsys, extra, field):
     assert main(["fit", "--out", str(tmp_path / "o"), *extra]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and field in err
+
+
+def _tiny_fit_args(tmp_path):
+    target = tmp_path / "target.csv"
+    t = np.arange(0, 0.6001, 0.01)
+    angle = 20 + 20 * (10 * t**3 - 15 * t**4 + 6 * t**5)
+    target.write_text("time,elbow\n" + "".join(f"{a},{b}\n" for a, b in zip(t, angle,
+                                                                          strict=True)))
+    return ["fit", "--target", str(target), "--out", str(tmp_path / "fit"), "--generations",
+            "1", "--population", "2", "--polish", "0"]
+
+
+def test_a_new_fit_into_a_fit_directory_needs_resume_or_overwrite(tmp_path, capsys):
+    args = _tiny_fit_args(tmp_path)
+    assert main(args) == 0
+    first = (tmp_path / "fit" / "fit_summary.json").read_text()
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "--resume" in err and "--overwrite" in err and err.count("\n") == 1
+    assert (tmp_path / "fit" / "fit_summary.json").read_text() == first  # untouched
+    assert main([*args, "--overwrite"]) == 0
+    assert not (tmp_path / "fit" / ".torquesim-fit.lock").exists()
+
+
+def test_a_second_fit_into_a_locked_directory_is_refused(tmp_path, capsys):
+    import os
+
+    args = _tiny_fit_args(tmp_path)
+    (tmp_path / "fit").mkdir()
+    (tmp_path / "fit" / ".torquesim-fit.lock").write_text(str(os.getppid()))  # alive
+    assert main(args) == 2
+    assert "another torquesim fit" in capsys.readouterr().err
+    (tmp_path / "fit" / ".torquesim-fit.lock").write_text("999999999")  # gone: stale
+    assert main(args) == 0
+
+
+def test_sigterm_while_the_outputs_are_written_leaves_one_consistent_set(tmp_path, capsys,
+                                                                         monkeypatch):
+    """The signal arrives from inside the writing (injected, not timed): the run finishes
+    writing every file from the same parameters and exits 130."""
+    import os
+    import signal
+
+    import torquesim.fitting.outputs as outputs
+
+    real_save = outputs.save_model
+
+    def save_then_signal(*a, **k):
+        path = real_save(*a, **k)
+        os.kill(os.getpid(), signal.SIGTERM)  # between the model file and the others
+        return path
+
+    monkeypatch.setattr(outputs, "save_model", save_then_signal)
+    args = _tiny_fit_args(tmp_path)
+    assert main(args) == 130
+    out = tmp_path / "fit"
+    summary = json.loads((out / "fit_summary.json").read_text())
+    fitted = ts.load_model(out / "fitted_model.toml")
+    flexor = fitted.units[0].activation.ramps
+    assert flexor[0].delay == pytest.approx(summary["parameters"]["flexor.ramp1.delay"],
+                                            rel=1e-12)
+    for name in ("fit_motion.csv", "fit.png", "fit_checkpoint.npz"):
+        assert (out / name).stat().st_size > 0
+    assert signal.getsignal(signal.SIGTERM) is not None

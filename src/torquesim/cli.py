@@ -282,9 +282,11 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
               show_default=True, help="Directory for the fitted model, table, figure, summary "
                                       "and checkpoint.")
 @click.option("--resume", is_flag=True, help="Continue from OUT/fit_checkpoint.npz.")
+@click.option("--overwrite", is_flag=True,
+              help="Start a new fit in an --out directory that holds an earlier one.")
 def fit(target_spec, column, units, model_path, method, step, seed, generations, population,
         polish, max_time, extensor_rest, bounds, frozen, weight_velocity, weight_end, out_dir,
-        resume):
+        resume, overwrite):
     """Fit both units' activation ramps (18 parameters) to a measured elbow motion.
 
     Inverse-dynamics start, differential evolution, Nelder-Mead polish; the result is
@@ -297,7 +299,7 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
 
     from .fitting import FitProblem, ParameterSpace, SearchSettings, load_target, run_fit
     from .fitting.fit import load_checkpoint
-    from .fitting.outputs import CHECKPOINT_FILE, summarise, summary_lines, write_outputs
+    from .fitting.outputs import CHECKPOINT_FILE, FIT_FILES, summarise, summary_lines, write_outputs
     from .io.model_file import load_model
 
     out = Path(out_dir)
@@ -305,6 +307,11 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
         raise ModelError("--out", f"{out_dir!r} is a file; allowed: a directory")
     if not (out.parent if str(out.parent) else Path(".")).is_dir():
         raise ModelError("--out", f"directory {str(out.parent)!r} does not exist")
+    if resume and overwrite:
+        raise ModelError("--overwrite", "contradicts --resume; allowed: one of them")
+    if not resume and not overwrite and any((out / f).exists() for f in FIT_FILES):
+        raise ModelError("--out", f"{out_dir!r} holds an earlier fit; allowed: --resume to "
+                         "continue it or --overwrite to replace it")
     target = load_target(target_spec, column, units)
     if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt") and \
             np.max(np.abs(np.degrees(target.angle))) <= math.pi:
@@ -331,6 +338,7 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
         state = load_checkpoint(checkpoint, problem, settings)
     created = not out.exists()
     out.mkdir(exist_ok=True)
+    lock = _take_lock(out)
     stop = []
 
     def request_stop(signum, _frame):
@@ -338,28 +346,64 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
         click.echo("stopping: finishing the current generation, then writing the best so "
                    "far", err=True)
 
+    # The handlers stay until the outputs are written: an interrupt while they are written
+    # only sets the flag, so the model file, table, figure and summary always come from the
+    # same parameters (each file is replaced atomically).
     previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
                                                                  signal.SIGTERM)}
     try:
         outcome = run_fit(problem, settings, checkpoint=checkpoint, resume=state,
                           progress=lambda msg: click.echo(msg, err=True),
                           should_stop=lambda: bool(stop))
+        summary = summarise(problem, outcome, settings)
+        files = write_outputs(out, problem, outcome, summary)
     except ModelError:
+        lock.unlink(missing_ok=True)
         if created and not any(out.iterdir()):
             out.rmdir()
         raise
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    summary = summarise(problem, outcome, settings)
-    files = write_outputs(out, problem, outcome, summary)
+        lock.unlink(missing_ok=True)
     click.echo("\n".join(summary_lines(summary)))
     click.echo(f"wrote {out_dir}/: {', '.join(files)}, {CHECKPOINT_FILE}")
-    if outcome.interrupted:
+    if outcome.interrupted or stop:
         click.echo(f"interrupted: best so far written; continue with --resume --out {out_dir}",
                    err=True)
         return 130
     return 0
+
+
+LOCK_FILE = ".torquesim-fit.lock"
+
+
+def _take_lock(out: Path) -> Path:
+    """Create ``out/.torquesim-fit.lock`` holding this process id, or refuse when another
+    running process holds it (a lock left by a process that is gone is taken over)."""
+    import os
+
+    lock = out / LOCK_FILE
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            try:
+                holder = int(lock.read_text().strip() or 0)
+                os.kill(holder, 0)  # raises if no such process
+                running = holder != os.getpid()
+            except (ValueError, OSError):
+                running = False
+            if running:
+                raise ModelError("--out", f"another torquesim fit (process {holder}) is "
+                                 f"writing to {str(out)!r}; allowed: one fit per directory at "
+                                 f"a time (if none is running, delete {str(lock)!r})") from None
+            lock.unlink(missing_ok=True)  # stale: its process is gone
+            continue
+        with os.fdopen(fd, "w") as fh:
+            fh.write(str(os.getpid()))
+        return lock
+    raise ModelError("--out", f"cannot take the lock {str(lock)!r}")
 
 
 def main(argv=None) -> int:

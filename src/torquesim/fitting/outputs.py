@@ -24,6 +24,8 @@ MOTION_FILE = "fit_motion.csv"
 FIGURE_FILE = "fit.png"
 SUMMARY_FILE = "fit_summary.json"
 CHECKPOINT_FILE = "fit_checkpoint.npz"
+#: The files a fit leaves in its directory.
+FIT_FILES = (MODEL_FILE, MOTION_FILE, FIGURE_FILE, SUMMARY_FILE, CHECKPOINT_FILE)
 #: The fit's own error and the reference re-simulation's may differ by this much (deg RMS)
 #: before the summary warns that the fit leans on the integrator's error.
 TRUST_MARGIN_DEG = 0.25
