@@ -106,3 +106,36 @@ def test_atomic_write_leaves_nothing_on_failure(tmp_path):
     with pytest.raises(RuntimeError):
         write_atomic(tmp_path / "out.csv", broken)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_output_files_honour_the_umask(tmp_path):
+    import os
+
+    old = os.umask(0o022)
+    try:
+        path = ts.save_model(ts.default_model(), tmp_path / "m.toml")
+    finally:
+        os.umask(old)
+    assert path.stat().st_mode & 0o777 == 0o644
+
+
+@pytest.mark.parametrize("where", ["/proc/torquesim-test.csv", "/proc/self/run.csv"])
+def test_unwritable_output_path_is_one_line_exit_2(where, capsys):
+    from torquesim.cli import main
+
+    assert main(["simulate", "--duration", "0.01", "--out", where]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and where in err and err.count("\n") == 1
+
+
+def test_a_failed_write_keeps_the_previous_file(tmp_path):
+    path = tmp_path / "out.csv"
+    path.write_text("previous\n")
+
+    def broken(tmp):
+        tmp.write_text("half")
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(ts.ModelError, match="No space left"):
+        write_atomic(path, broken)
+    assert path.read_text() == "previous\n" and sorted(tmp_path.iterdir()) == [path]

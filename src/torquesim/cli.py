@@ -422,6 +422,10 @@ def main(argv=None) -> int:
     except SimulationError as exc:
         click.echo(f"error: {exc}", err=True)
         return 1
+    except OSError as exc:  # a path the command could not create or write
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"error: {where}{exc.strerror or exc}", err=True)
+        return 2
     return code if isinstance(code, int) else 0
 
 
