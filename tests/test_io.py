@@ -78,7 +78,7 @@ def test_toml_is_commented_with_units_and_sources():
 def test_result_table_round_trip(tmp_path, suffix):
     result = ts.simulate(ts.default_model().replace(duration=0.2), "monolithic", 1e-4)
     path = tmp_path / f"run{suffix}"
-    result.save(path)
+    ts.save_result(result, path)
     table = ts.read_table(path)
     cols = result.columns()
     assert list(k for k in table if not k.startswith("_")) == list(cols)

@@ -7,13 +7,13 @@ step boundaries), monolithic (one RK4), IMEX, or by SciPy's adaptive solvers.
 
 >>> import torquesim as ts
 >>> result = ts.simulate(ts.default_model(), "monolithic", step=1e-4)   # doctest: +SKIP
->>> result.save("curl.sto")                                              # doctest: +SKIP
+>>> ts.save_result(result, "curl.sto")                                  # doctest: +SKIP
 """
 
 from importlib.metadata import PackageNotFoundError, version
 
 from .errors import ModelError, SimulationError
-from .io import load_model, read_table, save_model
+from .io import load_model, read_table, save_model, save_result
 from .model import (
     ActivationProfile,
     BodyParameters,
@@ -54,5 +54,6 @@ __all__ = [
     "load_model",
     "read_table",
     "save_model",
+    "save_result",
     "simulate",
 ]

@@ -93,7 +93,9 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
     if out_path:
-        result.save(out_path)
+        from .io.tables import save_result
+
+        save_result(result, out_path)
     if plot_path:
         from .plots import plot_result, save_figure
 

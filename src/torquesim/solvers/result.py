@@ -222,13 +222,6 @@ class SimulationResult:
         i = int(np.argmax(angle))
         return float(angle[i]), float(self.time[i])
 
-    def save(self, path) -> None:
-        """Write the table to ``.csv`` or OpenSim ``.sto``/``.mot`` (by extension), atomically,
-        with a manifest ``<path>.manifest.json`` beside it."""
-        from ..io.tables import save_result
-
-        save_result(self, path)
-
 
 def column_units(name: str) -> str:
     """SI unit of an output column of :meth:`SimulationResult.columns`."""

@@ -205,3 +205,36 @@ def render_report(rows, reference, *, smooth_orders=None, title="torquesim compa
         out.append("<h2>Settings</h2><pre>" + html.escape(str(settings)) + "</pre>")
     out.append("</body></html>")
     return "\n".join(out)
+
+
+def plot_sensitivity(summary: list[dict], name: str):
+    """Smallest τ per unit and each fixed-step technique's stability limit against the value."""
+    import matplotlib.pyplot as plt
+
+    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    values = sorted({r["value"] for r in summary})
+    first = {v: next(r for r in summary if r["value"] == v) for v in values}
+    ax0.loglog(values, [first[v]["min_tau_s"] * 1e3 for v in values], "o-",
+               label="smallest unit τ")
+    ax0.loglog(values, [RK4_STABILITY_LIMIT * first[v]["min_tau_s"] * 1e3 for v in values],
+               "k:", label="RK4 limit 2.785·min τ")
+    ax0.set_xlabel(name)
+    ax0.set_ylabel("ms")
+    ax0.legend(fontsize="small")
+    for tech in dict.fromkeys(r["technique"] for r in summary):
+        limits = [next((r["stability_limit_s"] for r in summary
+                        if r["value"] == v and r["technique"] == tech), None) for v in values]
+        if any(lim is not None for lim in limits):
+            ax1.semilogy(values, [np.nan if lim is None else lim * 1e3 for lim in limits], "o-",
+                         label=tech)
+    ax1.set_xscale("log")
+    ax1.set_xlabel(name)
+    ax1.set_ylabel("largest step tried within 1° (ms)")
+    ax1.legend(fontsize="x-small")
+    from matplotlib.ticker import NullFormatter
+
+    for ax in (ax0, ax1):
+        ax.grid(alpha=0.3, which="both")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.yaxis.set_minor_formatter(NullFormatter())
+    return fig
