@@ -10,29 +10,38 @@ step boundaries), monolithic (one RK4), IMEX, or by SciPy's adaptive solvers.
 >>> ts.save_result(result, "curl.sto")                                  # doctest: +SKIP
 """
 
+from importlib import import_module
 from importlib.metadata import PackageNotFoundError, version
-
-from .errors import ModelError, SimulationError
-from .io import load_model, read_table, save_model, save_result
-from .model import (
-    ActivationProfile,
-    BodyParameters,
-    ChainModel,
-    ElbowModel,
-    Joint,
-    PointLoad,
-    Ramp,
-    Segment,
-    TorqueGeneratorUnit,
-    Unit,
-    default_model,
-)
-from .solvers import Coupling, SimulationResult, simulate
 
 try:
     __version__ = version("torquesim")
 except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0.0.0+unknown"
+
+#: Public name → the module that defines it. Imported on first use (PEP 562), so that
+#: ``torquesim --help`` and other light commands do not load Numba, SciPy or Matplotlib.
+_EXPORTS = {
+    "ModelError": "errors", "SimulationError": "errors",
+    "load_model": "io", "read_table": "io", "save_model": "io", "save_result": "io",
+    "ActivationProfile": "model", "BodyParameters": "model", "ChainModel": "model",
+    "ElbowModel": "model", "Joint": "model", "PointLoad": "model", "Ramp": "model",
+    "Segment": "model", "TorqueGeneratorUnit": "model", "Unit": "model",
+    "default_model": "model",
+    "Coupling": "solvers", "SimulationResult": "solvers", "simulate": "solvers",
+}
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'torquesim' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted([*globals(), *_EXPORTS])
+
 
 __all__ = [
     "ActivationProfile",
