@@ -378,3 +378,13 @@ def test_sigterm_while_the_outputs_are_written_leaves_one_consistent_set(tmp_pat
     for name in ("fit_motion.csv", "fit.png", "fit_checkpoint.npz"):
         assert (out / name).stat().st_size > 0
     assert signal.getsignal(signal.SIGTERM) is not None
+
+
+def test_fit_quiet_prints_no_progress_and_lines_otherwise(tmp_path, capsys):
+    """Not a terminal here: no bar either way; the progress lines unless --quiet."""
+    args = _tiny_fit_args(tmp_path)
+    assert main([*args, "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+    assert main([*args, "--overwrite"]) == 0
+    err = capsys.readouterr().err
+    assert "initial guess" in err and "\r" not in err  # lines, no bar

@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 import torquesim as ts
+from torquesim.solvers.coupling import IMEX
 from torquesim.study.compare import (
     COLUMNS,
+    Technique,
     observed_order,
     run_study,
     stability_limit,
@@ -152,3 +154,14 @@ def test_vary_model_changes_only_the_named_parameter():
     arm = ts.load_model("builtin:arm-raise")
     heavy = vary_model(arm, "extensor_level", 0.2)
     assert [u.activation.initial_level for u in heavy.units if u.direction == -1] == [0.2, 0.2]
+
+
+def test_run_study_reports_progress_after_every_run():
+    seen = []
+    model = ts.default_model().replace(duration=0.01)
+    techniques = (Technique("monolithic", "monolithic"), Technique("imex", "imex", IMEX))
+    rows, _ = run_study(model, steps=(1e-3, 5e-4), tolerances=(), techniques=techniques,
+                        repeats=1, progress=lambda done, total, label: seen.append(
+                            (done, total, label)))
+    assert [s[:2] for s in seen] == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    assert seen[0][2] == "monolithic h 1 ms" and len(rows) == 4

@@ -153,6 +153,50 @@ def model(name, out_path):
     click.echo(f"wrote {out_path}")
 
 
+class Progress:
+    """Progress bars (tqdm) on stderr for the long commands, and their occasional lines.
+
+    Bars are drawn only when stderr is a terminal; ``quiet`` silences bars and lines alike.
+    ``step(done, total, label)`` advances the bar of the current phase (a new ``total``
+    starts a new bar); ``done == total == 0`` announces a phase by its ``label``.
+    """
+
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.bars = not quiet and sys.stderr.isatty()
+        self.bar = None
+
+    def say(self, message: str) -> None:
+        if self.quiet:
+            return
+        if self.bar is not None:
+            from tqdm import tqdm
+
+            tqdm.write(message, file=sys.stderr)
+        else:
+            click.echo(message, err=True)
+
+    def step(self, done: int, total: int, label: str) -> None:
+        if total <= 0:
+            self.close()
+            self.say(label)
+            return
+        if not self.bars:
+            return
+        from tqdm import tqdm
+
+        if self.bar is None or self.bar.total != total or done < self.bar.n:
+            self.close()
+            self.bar = tqdm(total=total, file=sys.stderr, leave=False, dynamic_ncols=True)
+        self.bar.set_postfix_str(label, refresh=False)
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
 def _parse_steps(text: str) -> tuple[float, ...]:
     try:
         values = tuple(float(x) * 1e-3 for x in text.split(",") if x.strip())
@@ -174,11 +218,13 @@ def _parse_steps(text: str) -> tuple[float, ...]:
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="compare-out",
               show_default=True, help="Directory for results.csv, figures, report.html.")
 @click.option("--vary", metavar="NAME=V1,V2,...",
-              help="Repeat the study per value of one parameter: se_stiffness (N·m/rad), "
+              help="Repeat the study per value of one parameter (every unit / every extensor / "
+                   "every point load): se_stiffness (N·m/rad), "
                    "extensor_level (constant co-activation), dumbbell_mass (kg), ce_damping "
                    "(N·m·s/rad); writes "
                    "sensitivity.csv/.png/.html and one study folder per value.")
-def compare(model_path, steps, repeats, out_dir, vary):
+@click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
+def compare(model_path, steps, repeats, out_dir, vary, quiet):
     """Every technique over a range of steps against the reference: accuracy, order,
     stability and cost, and the verdict."""
     from .io.model_file import load_model
@@ -191,8 +237,8 @@ def compare(model_path, steps, repeats, out_dir, vary):
     for h in values:
         step_count(model.duration, h, "--steps")
 
-    def progress(message):
-        click.echo(message, err=True)
+    reporter = Progress(quiet)
+    progress = reporter.step
 
     if vary:
         from .study.sensitivity import parse_vary, write_sensitivity
@@ -201,6 +247,7 @@ def compare(model_path, steps, repeats, out_dir, vary):
         summary = write_sensitivity(out_dir, model, name, vary_values, steps=values,
                                     repeats=repeats, progress=progress,
                                     model_source=model_path)
+        reporter.close()
         for value in vary_values:
             picks = [r for r in summary if r["value"] == value]
             smallest = min(values) * 1e3
@@ -217,6 +264,7 @@ def compare(model_path, steps, repeats, out_dir, vary):
 
     rows, _, smooth = write_study(out_dir, model, steps=values, repeats=repeats,
                                   progress=progress, model_source=model_path)
+    reporter.close()
     names = list(dict.fromkeys(r["technique"] for r in rows))
     click.echo("\n".join(verdict_sentences(verdict(rows), names)))
     click.echo(f"wrote {out_dir}/results.csv, report.html, convergence.png, "
@@ -286,9 +334,10 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
 @click.option("--resume", is_flag=True, help="Continue from OUT/fit_checkpoint.npz.")
 @click.option("--overwrite", is_flag=True,
               help="Start a new fit in an --out directory that holds an earlier one.")
+@click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
 def fit(target_spec, column, units, model_path, method, step, seed, generations, population,
         polish, max_time, extensor_rest, bounds, frozen, weight_velocity, weight_end, out_dir,
-        resume, overwrite):
+        resume, overwrite, quiet):
     """Fit both units' activation ramps (18 parameters) to a measured elbow motion.
 
     Inverse-dynamics start, differential evolution, Nelder-Mead polish; the result is
@@ -354,9 +403,12 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
     previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
                                                                  signal.SIGTERM)}
     try:
+        reporter = Progress(quiet)
         outcome = run_fit(problem, settings, checkpoint=checkpoint, resume=state,
-                          progress=lambda msg: click.echo(msg, err=True),
+                          progress=reporter.say,
+                          tick=lambda stage, done, total: reporter.step(done, total, stage),
                           should_stop=lambda: bool(stop))
+        reporter.close()
         summary = summarise(problem, outcome, settings)
         files = write_outputs(out, problem, outcome, summary)
     except ModelError:

@@ -185,11 +185,15 @@ def _explain_failed_start(problem: FitProblem, x) -> None:
 def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
             checkpoint: str | Path | None = None, resume: dict | None = None,
             progress: Callable[[str], None] | None = None,
+            tick: Callable[[str, int, int], None] | None = None,
             should_stop: Callable[[], bool] = lambda: False) -> FitOutcome:
     """Fit the activation ramps of ``problem`` (module docstring).
 
     ``should_stop`` is polled once per generation / polish simulation batch; when it returns
     True the fit stops, checkpoints and returns the best so far with ``interrupted=True``.
+    ``progress(message)`` receives a line now and then; ``tick(stage, done, total)`` is called
+    after every generation (stage ``"search"``) and polish step (``"polish"``, counted in
+    simulations), for a progress bar.
     """
     say = progress or (lambda _msg: None)
     space = problem.space
@@ -270,6 +274,8 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
             state["population"] = np.array(intermediate_result.population)
             keep(intermediate_result.x, intermediate_result.fun)
             state["history"].append([problem.simulations, elapsed(), state["best_score"]])
+            if tick:
+                tick("search", int(state["generations_done"]), settings.generations)
             if state["generations_done"] % 10 == 0:
                 say(f"search  generation {state['generations_done']}/{settings.generations}  "
                     f"best {state['best_score']:.3f} deg RMS  {problem.simulations} "
@@ -302,6 +308,8 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
         def on_step(intermediate_result):
             keep(intermediate_result.x, intermediate_result.fun)
             state["polish_done"] = done_before + problem.simulations - before
+            if tick:
+                tick("polish", int(state["polish_done"]), settings.polish_simulations)
             save()
             if should_stop():
                 interrupted[0] = True

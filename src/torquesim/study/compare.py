@@ -104,9 +104,11 @@ def _errors(result, reference) -> dict:
 
 def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
               techniques=None, repeats: int = 3, initial_state=None,
-              progress: Callable[[str], None] | None = None) -> tuple[list[dict], object]:
+              progress: Callable[[int, int, str], None] | None = None
+              ) -> tuple[list[dict], object]:
     """Run every technique at every step/tolerance on ``model`` (any chain); return (rows,
-    reference). Rows have :data:`COLUMNS` and the per-joint :func:`joint_error_columns`."""
+    reference). Rows have :data:`COLUMNS` and the per-joint :func:`joint_error_columns`.
+    ``progress(done, total, label)`` is called after each run."""
     model = as_chain(model)
     columns = COLUMNS + joint_error_columns(model)
     techniques = default_techniques() if techniques is None else techniques
@@ -116,9 +118,6 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
     rows = []
     jobs = [(t, s) for t in techniques for s in (tolerances if t.adaptive else steps)]
     for i, (tech, setting) in enumerate(jobs):
-        if progress:
-            what = f"tol {setting:g}" if tech.adaptive else f"h {setting * 1e3:g} ms"
-            progress(f"[{i + 1}/{len(jobs)}] {tech.name} {what}")
         kwargs = dict(initial_state=initial_state, check=False, advise=False)
         if tech.adaptive:
             kwargs.update(rtol=setting, atol=setting * 1e-3, output_step=GRID)
@@ -144,6 +143,9 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
                                               *joint_error_columns(model))})
             row.update(peak_error_deg=math.nan, final_torque_error_nm=math.nan, stable=False)
         rows.append({c: row.get(c) for c in columns})
+        if progress:
+            what = f"tol {setting:g}" if tech.adaptive else f"h {setting * 1e3:g} ms"
+            progress(i + 1, len(jobs), f"{tech.name} {what}")
     return rows, reference
 
 

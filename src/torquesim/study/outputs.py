@@ -68,7 +68,7 @@ def write_study(directory, model, *, steps, repeats=3, progress=None, model_sour
     rows, reference = run_study(model, steps=steps, repeats=repeats, progress=progress)
     if smooth is None:
         if progress:
-            progress("smooth case orders")
+            progress(0, 0, "smooth case orders")
         smooth = smooth_case_orders(chain=model.n_joints > 1)
     write_text_atomic(directory / "results.csv", rows_to_csv(rows))
     for name, plot in (("convergence", plot_convergence), ("work_precision", plot_work_precision)):

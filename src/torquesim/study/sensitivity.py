@@ -145,12 +145,12 @@ def write_sensitivity(directory, model, name: str, values, *, steps, repeats=3,
     models = [(v, vary_model(model, name, v)) for v in values]  # all checked before any run
     directory.mkdir(parents=True, exist_ok=True)
     if progress:
-        progress("smooth case orders")
+        progress(0, 0, "smooth case orders")
     smooth = smooth_case_orders(chain=as_chain(model).n_joints > 1)
     summary, figures = [], {}
     for value, varied in models:
         if progress:
-            progress(f"== {name} = {value:g}")
+            progress(0, 0, f"{name} = {value:g}")
         rows, reference, _ = write_study(directory / f"{name}={value:g}", varied, steps=steps,
                                          repeats=repeats, progress=progress, smooth=smooth,
                                          model_source=f"{model_source}, {name}={value:g}")
