@@ -80,7 +80,7 @@ def test_study_on_a_short_curl_measures_what_model_md_says(tmp_path):
             r["technique"] for r in rows))):
         assert sentence.replace("'", "&#x27;") in report
     first = table[0]
-    assert f"{float(first['max_error_rad']):.4g}" in report
+    assert f"{float(first['max_error_deg']):.4g}" in report
     assert report.count("data:image/png;base64,") == 3
     for name in ("convergence.png", "work_precision.png", "time_constants.png",
                  "manifest.json"):
@@ -107,14 +107,21 @@ def test_compare_cli_rejects_bad_steps(capsys):
     assert "--steps" in capsys.readouterr().err
 
 
-def test_sensitivity_to_se_stiffness_moves_tau_and_the_rk4_limit(tmp_path):
-    """τ = a·T_θ·|h'|/k: a stiffer SE shortens every time constant, so explicit RK4's
-    stability limit falls, while IMEX (implicit muscles) stays stable at the largest step."""
+@pytest.fixture(scope="module")
+def sensitivity_study(tmp_path_factory):
     from torquesim.study.sensitivity import write_sensitivity
 
+    out = tmp_path_factory.mktemp("vary")
     model = ts.default_model().replace(duration=0.6)
-    summary = write_sensitivity(tmp_path, model, "se_stiffness", (150.0, 3000.0),
+    summary = write_sensitivity(out, model, "se_stiffness", (150.0, 3000.0),
                                 steps=(2e-3, 5e-4, 2e-4, 1e-4), repeats=1)
+    return out, summary
+
+
+def test_sensitivity_to_se_stiffness_moves_tau_and_the_rk4_limit(sensitivity_study):
+    """τ = a·T_θ·|h'|/k: a stiffer SE shortens every time constant, so explicit RK4's
+    stability limit falls, while IMEX (implicit muscles) stays stable at the largest step."""
+    tmp_path, summary = sensitivity_study
     by = {(r["value"], r["technique"]): r for r in summary}
     soft, stiff = by[(150.0, "monolithic")], by[(3000.0, "monolithic")]
     assert soft["min_tau_unit"] == stiff["min_tau_unit"] == "elbow_extensor"
@@ -126,6 +133,43 @@ def test_sensitivity_to_se_stiffness_moves_tau_and_the_rk4_limit(tmp_path):
     html_text = (tmp_path / "sensitivity.html").read_text()
     assert html_text.count("data:image/png;base64,") == 3
     assert (tmp_path / "se_stiffness=3000" / "report.html").is_file()
+    assert "value (N·m/rad)" in html_text and "stability limit (ms)" in html_text
+
+
+def test_study_pages_fit_the_window_in_headless_chromium(sensitivity_study, tmp_path):
+    """The report and the sensitivity page, opened in Chromium at 1280 and 800 px: no part
+    wider than the window, every figure decodes (scripts/check_pages.py)."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "check_pages", Path(__file__).parents[1] / "scripts" / "check_pages.py")
+    check_pages = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(check_pages)
+    browser = check_pages.chromium()
+    if browser is None:
+        pytest.skip("no Chromium on this machine (scripts/check_pages.py needs one)")
+    out, _ = sensitivity_study
+    for page in (out / "sensitivity.html", out / "se_stiffness=3000" / "report.html"):
+        for width in check_pages.WIDTHS:
+            shot = tmp_path / f"{page.stem}-{width}.png"
+            assert check_pages.check_page(page, browser, width, shot) == "OK", (page, width)
+            assert shot.stat().st_size > 10_000
+
+
+def test_no_slope_is_claimed_where_the_error_sits_at_a_floor():
+    """Monolithic RK4 on the curl below its stability limit: errors 7e-10, 5e-9, 3e-9 rad
+    at 0.05, 0.1, 0.2 ms do not fall with h. No order, and the figure says so."""
+    from torquesim.study.report import order_label
+
+    floor = [row("M", 5e-5, math.degrees(6.8e-10), 1.0), row("M", 1e-4, math.degrees(4.6e-9), 1.0),
+             row("M", 2e-4, math.degrees(2.7e-9), 1.0), row("M", 5e-4, 4.3, 1.0)]
+    assert observed_order(floor, "M") is None
+    assert order_label(floor, "M") == "M (no asymptotic range)"
+    noisy = [row("N", h, e, 1.0) for h, e in [(1e-4, 1e-3), (2e-4, 1.1e-3), (4e-4, 8e-3),
+                                               (8e-4, 9e-3)]]
+    assert observed_order(noisy, "N") is None  # rising, but not a power law (R² < 0.98)
+    assert order_label(SYNTHETIC, "B") == "B (slope 2.00)"
 
 
 @pytest.mark.parametrize("text", ["tendon_slack=0,1", "se_stiffness=", "dumbbell_mass=-1",

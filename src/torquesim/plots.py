@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 
@@ -46,7 +48,7 @@ def plot_result(result, *, target=None):
     title = f"torquesim: {model.name}, {result.method}"
     if result.step:
         title += f", h = {result.step * 1e3:g} ms"
-    fig.suptitle(title)
+    fig.suptitle(textwrap.fill(title, 80))
     return fig
 
 

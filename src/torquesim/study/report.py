@@ -2,23 +2,31 @@
 
 from __future__ import annotations
 
-import base64
 import html
 import io
 import math
+import textwrap
 
 import numpy as np
 
 from ..solvers.fixed_step import RK4_STABILITY_LIMIT
 from .compare import (
     ACCURACY_TARGETS_DEG,
-    COLUMNS,
     STABLE_ERROR_DEG,
     observed_order,
     stability_limit,
     verdict,
     verdict_sentences,
 )
+from .page import image, page, settings_table, table
+
+#: Figure titles are wrapped at this many characters.
+TITLE_WIDTH = 70
+
+
+def wrapped(title: str, width: int = TITLE_WIDTH) -> str:
+    """``title`` broken into lines of at most ``width`` characters."""
+    return textwrap.fill(title, width)
 
 
 def _techniques(rows):
@@ -45,24 +53,26 @@ def _loglog_by_technique(rows, x_key, y_key, *, label, xlabel, ylabel, title, li
         ax.text(ax.get_xlim()[0], level * 1.15, f" {text}", color="grey", fontsize="small")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title)
+    ax.set_title(wrapped(title))
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize="small")
     return fig
 
 
+def order_label(rows, name) -> str:
+    """``name (slope p)`` where the runs show an asymptotic range, else says there is none."""
+    order = observed_order(rows, name)
+    return f"{name} ({'no asymptotic range' if order is None else f'slope {order:.2f}'})"
+
+
 def plot_convergence(rows):
-    """Max angle error against step (log-log), one line per fixed-step technique, labelled
-    with its fitted slope."""
-
-    def label(name):
-        order = observed_order(rows, name)
-        return name + (f" (slope {order:.2f})" if order is not None else "")
-
+    """Max angle error (degrees) against step (log-log), one line per fixed-step technique,
+    labelled with its fitted slope where :func:`observed_order` finds a power law."""
     return _loglog_by_technique(
-        rows, "h_s", "max_error_rad", label=label, xlabel="step h (ms)",
-        ylabel="max |θ − θ_ref| (rad)", title="Convergence against the Radau reference",
-        lines=[(math.radians(STABLE_ERROR_DEG), f"{STABLE_ERROR_DEG:g}°")])
+        rows, "h_s", "max_error_deg", label=lambda name: order_label(rows, name),
+        xlabel="step h (ms)", ylabel="max |q − q_ref| over the motion and the joints (deg)",
+        title="Convergence against the Radau reference",
+        lines=[(STABLE_ERROR_DEG, f"{STABLE_ERROR_DEG:g}°: the stability criterion")])
 
 
 def plot_work_precision(rows):
@@ -89,7 +99,7 @@ def plot_time_constants(reference):
     limit = RK4_STABILITY_LIMIT * np.min(np.array(list(taus.values())), axis=0)
     ax1.semilogy(reference.time, limit * 1e3, "k:",
                  label="largest stable RK4 step 2.785·min τ")
-    ax1.set_ylabel("ms")
+    ax1.set_ylabel("CE time constant τ (ms)")
     ax1.set_xlabel("time (s)")
     ax1.legend(fontsize="small")
     ax1.grid(alpha=0.3, which="both")
@@ -105,16 +115,6 @@ def figure_png(fig) -> bytes:
     return buf.getvalue()
 
 
-def _fmt(value) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    return html.escape(str(value))
-
-
 EXPLANATION = """
 <h2>Why each technique shows the order it shows</h2>
 <ul>
@@ -127,7 +127,8 @@ motion is plausible and wrong. Below the limit its error drops at once to a floo
 ~1e-9 rad that is not monotone in h: the slope jump of T<sub>ω</sub> at ω<sub>cc</sub> = 0
 (factor 4.3), the SE going slack and the clamps are crossed inside a step at a place that
 differs for every h, and a step containing such a kink has a local error of low order. The
-fitted slope on this case therefore measures the kinks, not RK4.</li>
+errors there do not fall as a power of h, so no order is reported for it on this case (“no
+asymptotic range”): a slope fitted through them would measure the kinks, not RK4.</li>
 <li><b>Partitioned (zero-order hold)</b> freezes the other part's output over a step: the
 coupling error is O(h) per unit time whatever the order of each part's integrator, so the
 method is first order, with a large constant on this stiff model (≈0.14 rad at 0.1 ms).
@@ -153,88 +154,105 @@ the kinks and the stiffness, not the requested accuracy, set the steps.</li>
 """
 
 
+#: The report's table of all runs: (row key, header with units, scale).
+RUN_TABLE = (("technique", "technique", None), ("h_s", "step h (ms)", 1e3),
+             ("tolerance", "rtol", None), ("max_error_deg", "max error (deg)", None),
+             ("rms_error_deg", "RMS error (deg)", None),
+             ("final_torque_error_nm", "final torque error (N·m)", None),
+             ("stable", "within 1°", None), ("guard_exceeded", "guard exceeded", None),
+             ("max_step_over_tau", "max h/τ", None), ("steps", "steps", None),
+             ("rhs_body", "body evaluations", None), ("rhs_muscle", "muscle evaluations", None),
+             ("wall_time_s", "wall time (ms)", 1e3), ("status", "status", None))
+
+
+def _scaled(value, scale):
+    return value * scale if scale is not None and isinstance(value, float) else value
+
+
 def render_report(rows, reference, *, smooth_orders=None, title="torquesim comparison",
                   settings=None) -> str:
-    """A self-contained HTML page: verdict, orders, stability limits, figures, the table."""
+    """A self-contained HTML page: verdict, orders, stability limits, figures, the table of
+    runs (the per-joint errors are in results.csv), the settings."""
     names = _techniques(rows)
-    verdicts = verdict(rows)
-    sentences = verdict_sentences(verdicts, names)
-    figs = {
-        "convergence": figure_png(plot_convergence(rows)),
-        "work_precision": figure_png(plot_work_precision(rows)),
-        "time_constants": figure_png(plot_time_constants(reference)),
-    }
-    img = {k: base64.b64encode(v).decode() for k, v in figs.items()}
-    out = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
-           "</title><style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
-           "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;"
-           "padding:2px 5px;text-align:right}th{background:#eee}</style></head><body>",
-           f"<h1>{html.escape(title)}</h1>",
-           "<p>Every technique against a Radau reference (rtol 1e-11). Error = max |q − "
-           "q<sub>ref</sub>| over the motion and over the joints (the table also gives it per "
-           "joint). Cost = median wall time after compilation and right-hand-side evaluations "
-           "per part.</p>",
-           "<h2>Verdict</h2><ul>"]
-    out += [f"<li>{html.escape(s)}</li>" for s in sentences]
-    out.append("</ul>")
-    out.append("<h2>Measured orders and stability limits</h2><table><tr><th>technique</th>"
-               "<th>observed order (default case)</th><th>order on the smooth case</th>"
-               "<th>stability limit: largest h within 1° (ms)</th></tr>")
+    sentences = verdict_sentences(verdict(rows), names)
+    body = ["<p>Every technique against a Radau reference (rtol 1e-11). Error = max |q − "
+            "q<sub>ref</sub>| over the motion and over the joints (results.csv also gives it "
+            "per joint). Cost = median wall time after compilation and right-hand-side "
+            "evaluations per part.</p>",
+            "<h2>Verdict</h2><ul>", *(f"<li>{html.escape(s)}</li>" for s in sentences), "</ul>",
+            "<h2>Measured orders and stability limits</h2>"]
+    order_rows = []
     for name in names:
         order = observed_order(rows, name)
         limit = stability_limit(rows, name)
         smooth = (smooth_orders or {}).get(name)
-        out.append(f"<tr><td style='text-align:left'>{html.escape(name)}</td>"
-                   f"<td>{'' if order is None else f'{order:.2f}'}</td>"
-                   f"<td>{'' if smooth is None else f'{smooth:.2f}'}</td>"
-                   f"<td>{'' if limit is None else f'{limit * 1e3:g}'}</td></tr>")
-    out.append("</table>")
-    out.append(f"<h2>Convergence</h2><img src='data:image/png;base64,{img['convergence']}'>")
-    out.append(f"<h2>Work-precision</h2><img src='data:image/png;base64,"
-               f"{img['work_precision']}'>")
-    out.append("<h2>Stiffness over the motion</h2><img src='data:image/png;base64,"
-               f"{img['time_constants']}'>")
-    out.append(EXPLANATION)
-    columns = list(rows[0]) if rows else list(COLUMNS)
-    out.append("<h2>All runs</h2><table><tr>" + "".join(f"<th>{c}</th>" for c in columns)
-               + "</tr>")
-    for r in rows:
-        out.append("<tr>" + "".join(f"<td>{_fmt(r[c])}</td>" for c in columns) + "</tr>")
-    out.append("</table>")
+        order_rows.append((name, "none" if order is None else f"{order:.2f}",
+                           "" if smooth is None else f"{smooth:.2f}",
+                           None if limit is None else limit * 1e3))
+    body.append(table(("technique", "observed order (this model)", "order on the smooth case",
+                       "stability limit: largest h within 1° (ms)"), order_rows))
+    body.append("<p>“none”: the errors do not fall as a power of h over the steps tried (no "
+                "asymptotic range; for monolithic RK4 on the curl the error below the "
+                "stability limit is a floor set by the model's kinks), or too few runs were "
+                "stable to measure a slope.</p>")
+    for heading, fig in (("Convergence", plot_convergence(rows)),
+                         ("Work-precision", plot_work_precision(rows)),
+                         ("Stiffness over the motion", plot_time_constants(reference))):
+        body.append(f"<h2>{heading}</h2>{image(figure_png(fig), heading)}")
+    body.append(EXPLANATION)
+    body.append("<h2>All runs</h2>")
+    body.append(table([h for _, h, _ in RUN_TABLE],
+                      [[_scaled(r.get(k), scale) for k, _, scale in RUN_TABLE] for r in rows]))
     if settings:
-        out.append("<h2>Settings</h2><pre>" + html.escape(str(settings)) + "</pre>")
-    out.append("</body></html>")
-    return "\n".join(out)
+        body.append("<h2>Settings</h2>" + settings_table(settings))
+    return page(title, body)
 
 
-def plot_sensitivity(summary: list[dict], name: str):
-    """Smallest τ per unit and each fixed-step technique's stability limit against the value."""
+def plot_sensitivity(summary: list[dict], name: str, unit: str):
+    """Smallest unit τ and each fixed-step technique's stability limit against the varied
+    value (``name`` in ``unit``), ticks at the values studied. The x axis is logarithmic when
+    every value is positive and they span more than a factor of 10."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FixedLocator, FuncFormatter, LogLocator, NullLocator
 
-    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
     values = sorted({r["value"] for r in summary})
     first = {v: next(r for r in summary if r["value"] == v) for v in values}
-    ax0.loglog(values, [first[v]["min_tau_s"] * 1e3 for v in values], "o-",
-               label="smallest unit τ")
-    ax0.loglog(values, [RK4_STABILITY_LIMIT * first[v]["min_tau_s"] * 1e3 for v in values],
-               "k:", label="RK4 limit 2.785·min τ")
-    ax0.set_xlabel(name)
-    ax0.set_ylabel("ms")
+    ax0.plot(values, [first[v]["min_tau_s"] * 1e3 for v in values], "o-",
+             label="smallest unit τ over the motion")
+    ax0.plot(values, [RK4_STABILITY_LIMIT * first[v]["min_tau_s"] * 1e3 for v in values],
+             "k:", label="RK4 limit 2.785·min τ")
+    ax0.set_ylabel("time constant, step (ms)")
+    ax0.set_title(wrapped("Stiffest unit's CE time constant", 45))
     ax0.legend(fontsize="small")
-    for tech in dict.fromkeys(r["technique"] for r in summary):
+    markers = "osD^v<>ph*"
+    for i, tech in enumerate(dict.fromkeys(r["technique"] for r in summary)):
         limits = [next((r["stability_limit_s"] for r in summary
                         if r["value"] == v and r["technique"] == tech), None) for v in values]
         if any(lim is not None for lim in limits):
-            ax1.semilogy(values, [np.nan if lim is None else lim * 1e3 for lim in limits], "o-",
-                         label=tech)
-    ax1.set_xscale("log")
-    ax1.set_xlabel(name)
-    ax1.set_ylabel("largest step tried within 1° (ms)")
+            # distinct markers and dashes, drawn half transparent, so lines lying on top of
+            # each other (several techniques often share a limit) stay visible
+            ax1.plot(values, [np.nan if lim is None else lim * 1e3 for lim in limits],
+                     marker=markers[i % len(markers)], ls=("-", "--", "-.", ":")[i % 4],
+                     ms=9 - i % 4 * 1.5, alpha=0.75, label=tech)
+    ax1.set_yscale("log")
+    ax1.set_ylabel("largest step within 1° (ms)")
+    ax1.set_title(wrapped("Stability limit of each fixed-step technique "
+                          "(every smaller step tried also within 1°)", 45))
     ax1.legend(fontsize="x-small")
-    from matplotlib.ticker import NullFormatter
-
+    log_x = min(values) > 0 and max(values) > 10 * min(values)
     for ax in (ax0, ax1):
+        if ax is ax0:
+            ax.set_yscale("log")
+        if log_x:
+            ax.set_xscale("log")
+        ax.xaxis.set_major_locator(FixedLocator(values))
+        ax.xaxis.set_minor_locator(NullLocator())
+        ax.set_xticks(values, [f"{v:g}" for v in values])
+        ax.set_xlabel(f"{name} ({unit})")
         ax.grid(alpha=0.3, which="both")
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.yaxis.set_minor_formatter(NullFormatter())
+        # labelled ticks at 1, 2 and 5 per decade: the values are read off the axis
+        ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_locator(NullLocator())
     return fig

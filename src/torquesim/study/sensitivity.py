@@ -7,7 +7,6 @@ activation, fast lengthening, stiff SE) is where explicit schemes suffer.
 
 from __future__ import annotations
 
-import base64
 import csv
 import html
 import io
@@ -23,17 +22,18 @@ from ..model.activation import ActivationProfile
 from ..model.chain import ChainModel, as_chain
 from .compare import ACCURACY_TARGETS_DEG, stability_limit, verdict
 from .outputs import smooth_case_orders, write_study
+from .page import image, page, table
 from .report import figure_png, plot_sensitivity
 
-#: Parameter name → (what it changes, allowed range).
+#: Parameter name → (what it changes, unit, allowed range).
 VARIABLES = {
-    "se_stiffness": ("SE stiffness k of every unit (flexors and extensors alike), N·m/rad",
+    "se_stiffness": ("SE stiffness k of every unit (flexors and extensors alike)", "N·m/rad",
                      (1.0, 1e5)),
     "extensor_level": ("constant activation of every extensor unit (its co-activation): "
-                       "initial level and every ramp", (0.0, 1.0)),
-    "dumbbell_mass": ("mass of every point load (the dumbbell of the elbow curl), kg",
+                       "initial level and every ramp", "activation, 0–1", (0.0, 1.0)),
+    "dumbbell_mass": ("mass of every point load (the dumbbell of the elbow curl)", "kg",
                       (0.0, 100.0)),
-    "ce_damping": ("CE parallel damping β of every unit (Millard et al. 2013), N·m·s/rad",
+    "ce_damping": ("CE parallel damping β of every unit (Millard et al. 2013)", "N·m·s/rad",
                    (0.0, 1e4)),
 }
 SUMMARY_COLUMNS = ("variable", "value", "technique", "stability_limit_s", "min_tau_unit",
@@ -52,7 +52,7 @@ def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
         values = tuple(float(v) for v in rest.split(",") if v.strip())
     except ValueError:
         values = ()
-    low, high = VARIABLES[name][1]
+    low, high = VARIABLES[name][2]
     if not values or not all(math.isfinite(v) and low <= v <= high for v in values):
         raise ModelError("--vary", f"{text!r}: allowed {name}=v1,v2,... with every value in "
                          f"[{low:g}, {high:g}]")
@@ -102,37 +102,30 @@ def summary_rows(name: str, value: float, rows: list[dict], reference) -> list[d
     return out
 
 
-def _cell(value) -> str:
-    if value is None:
-        return "—"
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    return html.escape(str(value))
-
-
 def render_sensitivity(summary, name, figures: dict[float, bytes], overview: bytes) -> str:
     """A self-contained HTML page of the sensitivity study."""
-    b64 = base64.b64encode
-    out = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>torquesim sensitivity"
-           "</title><style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
-           "table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;"
-           "padding:2px 6px}</style></head><body>",
-           f"<h1>Sensitivity to {html.escape(name)}</h1>",
-           f"<p>{html.escape(VARIABLES[name][0])}. The full study was repeated per value "
-           "(each in its own folder, with its report). Stability limit: the largest step whose "
-           "run, and every smaller one, stays within 1° of the reference.</p>",
-           f"<img src='data:image/png;base64,{b64(overview).decode()}'>",
-           "<h2>How the limits and the verdict move</h2><table><tr>"
-           + "".join(f"<th>{c}</th>" for c in SUMMARY_COLUMNS) + "</tr>"]
-    for r in summary:
-        out.append("<tr>" + "".join(f"<td>{_cell(r[c])}</td>" for c in SUMMARY_COLUMNS)
-                   + "</tr>")
-    out.append("</table><h2>Each unit's time constant over the motion</h2>")
+    what, unit, _ = VARIABLES[name]
+    headers = {"variable": "variable", "value": f"value ({unit})", "technique": "technique",
+               "stability_limit_s": "stability limit (ms)", "min_tau_unit": "stiffest unit",
+               "min_tau_s": "its smallest τ (ms)",
+               **{f"cheapest_{t:g}deg": f"cheapest for {t:g}°" for t in ACCURACY_TARGETS_DEG},
+               **{f"wall_time_{t:g}deg_s": f"its wall time for {t:g}° (ms)"
+                  for t in ACCURACY_TARGETS_DEG}}
+    in_ms = {"stability_limit_s", "min_tau_s", *(f"wall_time_{t:g}deg_s"
+                                                 for t in ACCURACY_TARGETS_DEG)}
+    rows = [[r[c] * 1e3 if c in in_ms and r[c] is not None else r[c] for c in SUMMARY_COLUMNS]
+            for r in summary]
+    body = [f"<p>{html.escape(what)} ({html.escape(unit)}). The full study was repeated per "
+            "value (each in its own folder, with its report). Stability limit: the largest "
+            "step whose run, and every smaller one, stays within 1° of the reference.</p>",
+            image(overview, "stability limits against the value"),
+            "<h2>How the limits and the verdict move</h2>",
+            table([headers[c] for c in SUMMARY_COLUMNS], rows, name_columns=1),
+            "<h2>Each unit's time constant over the motion</h2>"]
     for value, png in figures.items():
-        out.append(f"<h3>{html.escape(name)} = {value:g}</h3>"
-                   f"<img src='data:image/png;base64,{b64(png).decode()}'>")
-    out.append("</body></html>")
-    return "\n".join(out)
+        body.append(f"<h3>{html.escape(name)} = {value:g} {html.escape(unit)}</h3>"
+                    + image(png, f"time constants at {name} = {value:g}"))
+    return page(f"Sensitivity to {name}", body)
 
 
 def write_sensitivity(directory, model, name: str, values, *, steps, repeats=3,
@@ -161,7 +154,7 @@ def write_sensitivity(directory, model, name: str, values, *, steps, repeats=3,
     writer.writeheader()
     writer.writerows({k: ("" if v is None else v) for k, v in r.items()} for r in summary)
     write_text_atomic(directory / "sensitivity.csv", buf.getvalue())
-    overview = figure_png(plot_sensitivity(summary, name))
+    overview = figure_png(plot_sensitivity(summary, name, VARIABLES[name][1]))
     write_atomic(directory / "sensitivity.png", lambda p: p.write_bytes(overview))
     write_text_atomic(directory / "sensitivity.html",
                       render_sensitivity(summary, name, figures, overview))
