@@ -61,7 +61,10 @@ def check_page(page: Path, browser: str, width: int, screenshot: Path | None = N
     """'OK' or what is wrong with ``page`` in a ``width``-pixel window."""
     with tempfile.TemporaryDirectory() as tmp:
         probe = Path(tmp) / page.name
-        probe.write_text(page.read_text(encoding="utf-8").replace("</body>", CHECK + "</body>"),
+        # the probe lives elsewhere: a <base> keeps the page's relative links (figures) working
+        text = page.read_text(encoding="utf-8").replace("</body>", CHECK + "</body>")
+        base = f"<base href='{page.resolve().parent.as_uri()}/'>"
+        probe.write_text(re.sub(r"(<head[^>]*>)", lambda m: m.group(1) + base, text, count=1),
                          encoding="utf-8")
         dom = _run(browser, f"--window-size={width},900", "--dump-dom", probe.as_uri())
         if screenshot is not None:

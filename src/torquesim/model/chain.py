@@ -25,7 +25,6 @@ from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..errors import ModelError, check_range
 from .activation import ActivationProfile
@@ -575,6 +574,8 @@ def _rest_stretch(unit: Unit, q: float, level: float) -> float:
         return k * s - a * torque_angle(q + d * s, p) * p[H_ISOMETRIC]
 
     s_max = a * p[H_ISOMETRIC] / k  # T_θ ≤ 1 bounds the stretch
+    from scipy.optimize import brentq
+
     return brentq(balance, 0.0, s_max * (1 + 1e-12) + 1e-300, xtol=1e-16, rtol=1e-15)
 
 
@@ -594,6 +595,8 @@ def _agonist_level(units, agonists, q: float, needed: float) -> float:
         return 1.0 + (-surplus(1.0)) / needed  # > 1: reported as "cannot hold"
     if surplus(ACTIVATION_FLOOR) >= 0.0:
         return ACTIVATION_FLOOR
+    from scipy.optimize import brentq
+
     return brentq(surplus, ACTIVATION_FLOOR, 1.0, xtol=1e-15, rtol=1e-15)
 
 

@@ -7,7 +7,6 @@ import time as _time
 from dataclasses import replace
 
 import numpy as np
-from scipy.integrate import BDF, DOP853, LSODA, RK45, Radau
 
 from ..errors import ModelError, SimulationError, check_range
 from ..model.chain import ChainModel, as_chain
@@ -18,9 +17,9 @@ from .rates import chain_derivative
 from .result import RunCost, SimulationResult, StabilityReport
 
 FIXED_STEP_METHODS = ("monolithic", "partitioned", "imex")
-#: SciPy solvers usable on the whole system (``scipy:NAME``); ``reference`` is Radau.
-SCIPY_SOLVERS = {"RK45": RK45, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
-SCIPY_METHODS = tuple(SCIPY_SOLVERS)
+#: SciPy solvers (``scipy.integrate`` classes) usable on the whole system (``scipy:NAME``);
+#: ``reference`` is Radau. SciPy is imported only when one is used (start-up time).
+SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 METHODS = (*FIXED_STEP_METHODS, "reference")
 DEFAULT_STEP = 1.0e-4
 REFERENCE_RTOL = 1.0e-10
@@ -324,7 +323,9 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
     chain_derivative(0.0, y0, *packed)  # compile outside the timing
     start = _time.perf_counter()
     with np.errstate(all="ignore"):
-        solver = SCIPY_SOLVERS[name](rhs, 0.0, y0, model.duration, rtol=rtol, atol=atol)
+        import scipy.integrate
+
+        solver = getattr(scipy.integrate, name)(rhs, 0.0, y0, model.duration, rtol=rtol, atol=atol)
         while solver.status == "running":
             message = solver.step() or ""
             if solver.status == "failed":
