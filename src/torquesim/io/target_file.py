@@ -1,9 +1,11 @@
-"""Read a measured elbow angle history: CSV, or OpenSim storage (.mot/.sto)."""
+"""Read measured joint angle histories: CSV, or OpenSim storage (.mot/.sto) from inverse
+kinematics, one column per coordinate."""
 
 from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -19,18 +21,19 @@ def _fail(path: Path, message: str) -> ModelError:
     return ModelError("target", f"{path.name}: {message}")
 
 
-def _pick_column(path: Path, header: list[str], column: str | None) -> int:
-    names = [h.strip() for h in header]
-    if column is not None:
-        if column not in names:
-            raise _fail(path, f"no column {column!r}; allowed: {', '.join(names[1:])}")
-        return names.index(column)
+def _pick_column(path: Path, names: list[str], column: str | None) -> str:
+    """The one angle column of a single-joint read: ``column``, else the only non-time
+    column, else the only one whose name contains "elbow"."""
     others = [n for n in names if n.lower() != "time"]
+    if column is not None:
+        if column not in others:
+            raise _fail(path, f"no column {column!r}; allowed: {', '.join(others)}")
+        return column
     elbow = [n for n in others if "elbow" in n.lower()]
     if len(others) == 1:
-        return names.index(others[0])
+        return others[0]
     if len(elbow) == 1:
-        return names.index(elbow[0])
+        return elbow[0]
     raise _fail(path, f"several angle columns; choose one with --column: {', '.join(others)}")
 
 
@@ -46,18 +49,22 @@ def _number(path: Path, text: str, line: int, column: str) -> float:
     return value
 
 
-def read_angle_history(path, column: str | None = None,
-                       units: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
-    """Time (s) and elbow angle (rad) from a CSV or OpenSim ``.mot``/``.sto`` file.
+def read_angle_table(
+    path, units: str | None = None,
+    columns: Callable[[list[str]], list[str]] | list[str] | None = None,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Time (s) and every angle column (rad) of a CSV or OpenSim ``.mot``/``.sto`` file.
 
     CSV (comma, semicolon or tab separated; lines starting with ``#`` are comments): a header
-    row with ``time`` and the angle column (``column``; optional when the file has one angle
-    column, or exactly one whose name contains "elbow"); ``units`` is ``"deg"`` (default) or
-    ``"rad"``. Storage files: header lines up to ``endheader``, then
-    tab/space-separated columns; ``inDegrees=yes|no`` in the header gives the units (an
-    explicit ``units`` that contradicts it is an error; without the key ``units`` applies,
-    default degrees). Time must increase strictly; every cell must be a finite number.
-    Errors name the file, line and column. Returns (time, angle_rad, column_name).
+    row with ``time`` and angle columns; ``units`` is ``"deg"`` (default) or ``"rad"``.
+    Storage files (OpenSim inverse kinematics): header lines up to ``endheader``, then
+    tab/space-separated columns named after the coordinates; ``inDegrees=yes|no`` in the
+    header gives the units (an explicit ``units`` that contradicts it is an error; without the
+    key ``units`` applies, default degrees). Time must increase strictly; every cell of the
+    columns read must be a finite number, and no angle may exceed a full turn (the wrong
+    units). ``columns`` limits the columns read (and checked) to those names; it may be a
+    function of the angle column names that returns them. Errors name the file, line and
+    column. Returns (time, {column name: angle in rad}).
     """
     path = Path(path)
     if units is not None and units not in UNITS:
@@ -117,13 +124,22 @@ def read_angle_history(path, column: str | None = None,
     if "time" not in [n.lower() for n in names]:
         raise _fail(path, f"line {header_line}: no 'time' column in the header")
     t_col = [n.lower() for n in names].index("time")
-    a_col = _pick_column(path, header, column)
+    others = [n for n in names if n.lower() != "time"]
+    wanted = others if columns is None else list(columns(others) if callable(columns)
+                                                 else columns)
+    for name in wanted:
+        if name not in names:
+            allowed = ", ".join(n for n in names if n.lower() != "time")
+            raise _fail(path, f"no column {name!r}; allowed: {allowed}")
+    if not wanted:
+        raise _fail(path, f"line {header_line}: no angle column beside 'time'")
+    a_cols = [names.index(n) for n in wanted]
     time, angle = [], []
     for line_no, row in rows[1:]:
         if len(row) != len(names):
             raise _fail(path, f"line {line_no}: {len(row)} cells, the header has {len(names)}")
         time.append(_number(path, row[t_col], line_no, names[t_col]))
-        angle.append(_number(path, row[a_col], line_no, names[a_col]))
+        angle.append([_number(path, row[c], line_no, names[c]) for c in a_cols])
         if len(time) > 1 and time[-1] <= time[-2]:
             raise _fail(path, f"line {line_no}, column {names[t_col]!r}: time "
                               f"{time[-1]!r} does not increase (previous {time[-2]!r})")
@@ -135,10 +151,28 @@ def read_angle_history(path, column: str | None = None,
                           f"{len(names)} columns; allowed: a header that matches its data")
     if len(time) < MIN_SAMPLES:
         raise _fail(path, f"{len(time)} samples; allowed at least {MIN_SAMPLES}")
-    angle_rad = np.radians(angle) if (units or "deg") == "deg" else np.array(angle)
-    worst = float(np.max(np.abs(angle_rad)))
-    if worst > 2 * math.pi:
-        raise _fail(path, f"column {names[a_col]!r}: {math.degrees(worst):.4g}° is more than a "
-                          "full turn: not a joint angle in these units; allowed |angle| ≤ 360° "
-                          "(check --units or the file's inDegrees)")
-    return np.array(time), angle_rad, names[a_col]
+    table = np.array(angle).reshape(len(time), len(a_cols))
+    table = np.radians(table) if (units or "deg") == "deg" else table
+    out = {}
+    for i, name in enumerate(wanted):
+        worst = float(np.max(np.abs(table[:, i])))
+        if worst > 2 * math.pi:
+            raise _fail(path, f"column {name!r}: {math.degrees(worst):.4g}° is more than a "
+                              "full turn: not a joint angle in these units; allowed |angle| "
+                              "≤ 360° (check --units or the file's inDegrees)")
+        out[name] = np.ascontiguousarray(table[:, i])
+    return np.array(time), out
+
+
+def read_angle_history(path, column: str | None = None,
+                       units: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """One angle history from a file of :func:`read_angle_table`'s formats: ``column``, or
+    the only angle column, or the only one whose name contains "elbow". Returns (time,
+    angle_rad, column_name)."""
+    path = Path(path)
+    time, angles = read_angle_table(path, units,
+                                    columns=lambda names: [_pick_column(path, names, column)])
+    (name, angle), = angles.items()
+    return time, angle, name
+
+
