@@ -289,17 +289,33 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
     return out
 
 
+def _parse_pairs(values, option: str, example: str) -> dict[str, str]:
+    """``KEY=VALUE`` options as a dict of strings."""
+    out = {}
+    for text in values:
+        key, eq, value = text.partition("=")
+        if not eq or not key.strip() or not value.strip():
+            raise ModelError(option, f"{text!r}: allowed KEY=VALUE, e.g. {example}")
+        out[key.strip()] = value.strip()
+    return out
+
+
 @cli.command()
-@click.option("--target", "target_spec", default="builtin:curl", show_default=True,
-              help="Measured motion: a .csv (columns time and an angle) or OpenSim .mot/.sto "
-                   "file, or builtin:curl (docs/model.md §6 min-jerk curl 10°→135°→10°).")
-@click.option("--column", help="Angle column of the target (default: the only angle column, "
-                               "or the only one whose name contains 'elbow').")
+@click.option("--target", "target_spec", default=None,
+              help="Measured motion: a .csv (a time column and angle columns) or OpenSim "
+                   ".mot/.sto (inverse kinematics: one column per coordinate), or a built-in "
+                   "minimum-jerk motion builtin:curl|knee-extension|arm-raise. Default: the "
+                   "model preset's own (builtin:curl for the elbow).")
+@click.option("--column", "columns", multiple=True, metavar="JOINT=COLUMN",
+              help="Target column of a joint (repeatable). Default: matched by name (the "
+                   "joint's coordinate, e.g. elbow_flexion, its name, or the only column "
+                   "containing its name). On a one-joint model a bare COLUMN works. Joints "
+                   "without a column are simulated, not scored.")
 @click.option("--units", type=click.Choice(["deg", "rad"]),
-              help="Units of the target angle (CSV default deg; .mot/.sto: inDegrees).")
+              help="Units of the target angles (CSV default deg; .mot/.sto: inDegrees).")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
-              help="Model whose body and torque generators are used: the one-joint elbow "
-                   "(builtin:elbow-curl or an elbow TOML); chains cannot be fitted yet.")
+              help="Model: a TOML file or builtin:elbow-curl|knee-extension|arm-raise. Every "
+                   "unit's activation is fitted as 3 ramps (9 parameters per unit).")
 @click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
               default="imex", show_default=True,
               help="Technique inside the fit. Explicit RK4 (monolithic, partitioned) needs "
@@ -308,39 +324,60 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
 @click.option("--step", type=TIME, default="5ms", show_default=True,
               help="Fixed step (s; ms/us suffixes); the largest step not above it that "
                    "divides the target's span is used.")
+@click.option("--search", type=click.Choice(["least-squares", "global"]),
+              default="least-squares", show_default=True,
+              help="least-squares: trust-region least squares with a parallel "
+                   "finite-difference Jacobian from the inverse-dynamics start and perturbed "
+                   "starts (seconds); global: differential evolution + Nelder-Mead (robust, "
+                   "~10x the simulations).")
+@click.option("--starts", type=click.IntRange(1, 100), default=4, show_default=True,
+              help="least-squares: starting points screened (inverse dynamics + perturbed).")
+@click.option("--iterations", type=click.IntRange(1, 100_000), default=200, show_default=True,
+              help="least-squares: residual evaluations refining the best start.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True)
 @click.option("--generations", type=click.IntRange(0, 100_000), default=300,
-              show_default=True, help="Differential-evolution generations.")
+              show_default=True, help="global: differential-evolution generations.")
 @click.option("--population", type=click.IntRange(2, 100), default=10, show_default=True,
-              help="Population per free parameter.")
+              help="global: population per free parameter.")
 @click.option("--polish", type=click.IntRange(0, 10**7), default=4000, show_default=True,
-              help="Nelder-Mead simulations after the search.")
+              help="global: Nelder-Mead simulations after the search.")
 @click.option("--max-time", type=TIME, default=None,
               help="Optional wall-time cap (s); a capped fit depends on machine speed.")
-@click.option("--extensor-rest", type=float, default=0.1, show_default=True,
-              help="Extensor initial (rest) activation, not fitted.")
+@click.option("--rest-level", "--extensor-rest", "rest_level", type=float, default=None,
+              help="Initial (rest) activation of the units that do not start from "
+                   "equilibrium (the antagonists), not fitted. Default: the model's (0.1 for "
+                   "the elbow extensor).")
 @click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW,HIGH",
-              help="Change a parameter's bounds (repeatable), e.g. flexor.ramp1.delay=0,0.5. "
-                   "Defaults: delays 0-1 s, durations 0.05-0.8 s, levels 0-1.")
+              help="Change a parameter's bounds (repeatable), e.g. "
+                   "elbow.flexor.ramp1.delay=0,0.5 (UNIT.rampK.FIELD; UNIT a unit name such as "
+                   "elbow_flexor, or JOINT.flexor|extensor). Defaults: delays 0-1 s, "
+                   "durations 0.05-0.8 s, levels 0-1.")
 @click.option("--freeze", "frozen", multiple=True, metavar="NAME=VALUE",
-              help="Hold a parameter fixed (repeatable), e.g. extensor.ramp1.level=0.1.")
+              help="Hold a parameter fixed (repeatable), e.g. elbow.extensor.ramp1.level=0.1.")
+@click.option("--weight", "joint_weights", multiple=True, metavar="JOINT=W",
+              help="Weight of a joint's angle error (repeatable; default 1 each, normalised).")
 @click.option("--weight-velocity", type=float, default=0.0, show_default=True,
               help="Weight of the RMS angular-velocity error (deg/s x 1 s) in the objective.")
 @click.option("--weight-end", type=float, default=0.0, show_default=True,
               help="Weight of the end angle and velocity errors in the objective.")
+@click.option("--weight-effort", type=float, default=0.0, show_default=True,
+              help="Weight (deg² per activation²) of the effort: Σ over units of the mean "
+                   "squared activation above rest, so that among equal fits the least "
+                   "co-contraction wins (e.g. 10).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="fit-out",
-              show_default=True, help="Directory for the fitted model, table, figure, summary "
-                                      "and checkpoint.")
+              show_default=True, help="Directory for the fitted model, tables, figure, "
+                                      "summary and checkpoint.")
 @click.option("--resume", is_flag=True, help="Continue from OUT/fit_checkpoint.npz.")
 @click.option("--overwrite", is_flag=True,
               help="Start a new fit in an --out directory that holds an earlier one.")
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
-def fit(target_spec, column, units, model_path, method, step, seed, generations, population,
-        polish, max_time, extensor_rest, bounds, frozen, weight_velocity, weight_end, out_dir,
-        resume, overwrite, quiet):
-    """Fit both units' activation ramps (18 parameters) to a measured elbow motion.
+def fit(target_spec, columns, units, model_path, method, step, search, starts, iterations,
+        seed, generations, population, polish, max_time, rest_level, bounds, frozen,
+        joint_weights, weight_velocity, weight_end, weight_effort, out_dir, resume, overwrite,
+        quiet):
+    """Fit every unit's activation ramps to a measured motion of one or more joints.
 
-    Inverse-dynamics start, differential evolution, Nelder-Mead polish; the result is
+    Inverse-dynamics start, then least squares (or --search global); the result is
     re-simulated with the reference solver. Ctrl-C or SIGTERM writes the best so far and a
     checkpoint; --resume continues.
     """
@@ -351,6 +388,7 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
     from .fitting import FitProblem, ParameterSpace, SearchSettings, load_target, run_fit
     from .fitting.fit import load_checkpoint
     from .fitting.outputs import CHECKPOINT_FILE, FIT_FILES, summarise, summary_lines, write_outputs
+    from .fitting.target import BUILTIN_TARGETS
     from .io.model_file import load_model
 
     out = Path(out_dir)
@@ -363,23 +401,32 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
     if not resume and not overwrite and any((out / f).exists() for f in FIT_FILES):
         raise ModelError("--out", f"{out_dir!r} holds an earlier fit; allowed: --resume to "
                          "continue it or --overwrite to replace it")
-    target = load_target(target_spec, column, units)
-    if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt") and \
-            np.max(np.abs(np.degrees(target.angle))) <= math.pi:
-        click.echo("warning: every target angle is within ±3.2 degrees; if the file is in "
-                   "radians, pass --units rad", err=True)
-    space = ParameterSpace(extensor_rest=extensor_rest)
+    base = load_model(model_path)
+    if target_spec is None:
+        own = model_path.removeprefix("builtin:")
+        if not model_path.startswith("builtin:") or own not in BUILTIN_TARGETS:
+            raise ModelError("--target", "required for a model file; allowed: a .csv, .mot "
+                             "or .sto file, or builtin:curl|knee-extension|arm-raise")
+        target_spec = "builtin:curl" if own == "elbow-curl" else model_path
+    column_map = (columns[0] if len(columns) == 1 and "=" not in columns[0]
+                  else _parse_pairs(columns, "--column", "elbow=r_elbow_flex"))
+    target = load_target(target_spec, base, column_map, units)
+    if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt"):
+        for joint, angle in zip(target.joints, target.angles, strict=True):
+            if np.max(np.abs(np.degrees(angle))) <= math.pi:
+                click.echo(f"warning: every target angle of {joint} is within ±3.2 degrees; "
+                           "if the file is in radians, pass --units rad", err=True)
+    space = ParameterSpace.for_model(base, rest_level=rest_level)
     for name, (low, high) in _parse_assignments(bounds, "--bound", 2).items():
         space = space.with_bounds(name, low, high)
     for name, (value,) in _parse_assignments(frozen, "--freeze", 1).items():
         space = space.with_frozen(name, value)
-    settings = SearchSettings(seed=seed, generations=generations,
-                              population_per_parameter=population, polish_simulations=polish,
-                              max_time=max_time)
-    from .model import ElbowModel
-
-    base = ElbowModel.from_chain(load_model(model_path), "torquesim fit")
-    problem = FitProblem(target, space, base, method, step, weight_velocity, weight_end)
+    weights = {j: v for j, (v,) in _parse_assignments(joint_weights, "--weight", 1).items()}
+    settings = SearchSettings(search=search, seed=seed, starts=starts, iterations=iterations,
+                              generations=generations, population_per_parameter=population,
+                              polish_simulations=polish, max_time=max_time)
+    problem = FitProblem(target, space, base, method, step, weight_velocity, weight_end,
+                         weight_effort, weights)
     checkpoint = out / CHECKPOINT_FILE
     state = None
     if resume:
@@ -394,7 +441,7 @@ def fit(target_spec, column, units, model_path, method, step, seed, generations,
 
     def request_stop(signum, _frame):
         stop.append(signum)
-        click.echo("stopping: finishing the current generation, then writing the best so "
+        click.echo("stopping: finishing the current simulations, then writing the best so "
                    "far", err=True)
 
     # The handlers stay until the outputs are written: an interrupt while they are written

@@ -1,10 +1,19 @@
-"""The fit: inverse-dynamics start, differential evolution, Nelder-Mead polish.
+"""The fit: an inverse-dynamics start, then one of two searches.
 
-Budgets are counted in generations and simulations, never in wall time, so a fit is
-reproducible with the same seed on any machine (``max_time`` is an optional safety cap that
-gives up that guarantee). The optimiser state is checkpointed periodically and on
-interruption; a resumed fit continues from the saved population (differential evolution keeps
-the best member, so resuming never loses the best-so-far).
+``least-squares`` (default): SciPy's trust-region reflective least squares on the residual
+vector (:mod:`torquesim.fitting.objective`) from the inverse-dynamics start and from
+``starts − 1`` seeded perturbations of it; the Jacobian comes from central differences whose
+2·(free parameters) simulations run in parallel in compiled code. Its cost grows with the
+number of parameters only through the Jacobian, so chains fit in seconds.
+
+``global``: differential evolution over the bounds (population 10 × free parameters), then a
+Nelder-Mead polish: robust when the start is poor, but ~10× the simulations.
+
+Budgets are counted in iterations, generations and simulations, never in wall time, so a fit
+is reproducible with the same seed on any machine (``max_time`` is an optional safety cap
+that gives up that guarantee). The state is checkpointed periodically and on interruption;
+a resumed fit continues where it stopped (a least-squares start that was cut off is run again
+from its beginning, so the result is the one an uninterrupted fit gives).
 """
 
 from __future__ import annotations
@@ -23,20 +32,34 @@ from scipy.stats import qmc
 from ..errors import ModelError, check_range
 from ..io.atomic import write_atomic
 from .initial_guess import initial_guess
-from .parameters import PARAMETER_NAMES
 from .problem import FitProblem
 
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2
+SEARCHES = ("least-squares", "global")
+#: Central-difference step of the Jacobian (s for delays and durations, activation for
+#: levels); one-sided where a bound is closer.
+DIFFERENCE_STEP = 1e-5
+#: Residual evaluations each least-squares start gets before the best one is refined.
+SCREEN_EVALUATIONS = 6
 
 
 @dataclass(frozen=True)
 class SearchSettings:
-    """How hard the optimiser works.
+    """Which search, and how hard it works.
 
     Attributes
     ----------
+    search : str
+        ``least-squares`` (default) or ``global`` (module docstring).
     seed : int
         Random seed; the same seed gives the same fit. Default 1.
+    starts : int
+        Least squares: the inverse-dynamics start plus ``starts − 1`` perturbed copies of it
+        (normal, 10 % of each range), each screened with a few iterations; the best is
+        refined. Default 4. Bounds [1, 100].
+    iterations : int
+        Least squares: residual evaluations of the refinement of the best start (most also
+        cost a Jacobian). Default 200. Bounds [1, 100000].
     generations : int
         Differential-evolution generations. Default 300. Bounds [0, 100000].
     population_per_parameter : int
@@ -50,7 +73,10 @@ class SearchSettings:
         Seconds between checkpoints. Default 10.
     """
 
+    search: str = "least-squares"
     seed: int = 1
+    starts: int = 4
+    iterations: int = 200
     generations: int = 300
     population_per_parameter: int = 10
     polish_simulations: int = 4000
@@ -58,7 +84,11 @@ class SearchSettings:
     checkpoint_every: float = 10.0
 
     def __post_init__(self) -> None:
+        if self.search not in SEARCHES:
+            raise ModelError("search", f"{self.search!r}; allowed: {', '.join(SEARCHES)}")
         check_range("seed", self.seed, 0, 2**32 - 1)
+        check_range("starts", self.starts, 1, 100)
+        check_range("iterations", self.iterations, 1, 100_000)
         check_range("generations", self.generations, 0, 100_000)
         check_range("population_per_parameter", self.population_per_parameter, 2, 100)
         check_range("polish_simulations", self.polish_simulations, 0, 10**7)
@@ -69,7 +99,8 @@ class SearchSettings:
 
 @dataclass
 class FitOutcome:
-    """What a fit found. ``x`` is the 18-vector; scores are in degrees."""
+    """What a fit found. ``x`` is the parameter vector; scores are in degrees. ``generations``
+    counts least-squares starts for that search."""
 
     x: np.ndarray
     score: float
@@ -89,9 +120,9 @@ def fingerprint(problem: FitProblem) -> str:
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(problem.target.time).tobytes())
     h.update(np.ascontiguousarray(problem.target.angle).tobytes())
-    h.update(repr((problem.model.body, problem.model.flexor, problem.model.extensor,
-                   problem.space, problem.method, problem.step, problem.weight_velocity,
-                   problem.weight_end)).encode())
+    h.update(repr((problem.model, problem.space, problem.method, problem.step,
+                   problem.weight_velocity, problem.weight_end, problem.weight_effort,
+                   problem.weights.tolist(), problem.target.joints)).encode())
     return h.hexdigest()[:16]
 
 
@@ -107,9 +138,9 @@ def save_checkpoint(path, state: dict) -> None:
 
 
 #: What a checkpoint must hold to be resumed.
-CHECKPOINT_KEYS = ("version", "fingerprint", "seed", "population_per_parameter", "stage",
-                   "generations_done", "polish_done", "simulations", "failed", "best_score",
-                   "best_x", "initial_x", "population", "history")
+CHECKPOINT_KEYS = ("version", "fingerprint", "search", "seed", "population_per_parameter",
+                   "starts", "stage", "generations_done", "polish_done", "simulations", "failed",
+                   "best_score", "best_x", "initial_x", "population", "history")
 
 
 def load_checkpoint(path, problem: FitProblem, settings: SearchSettings) -> dict:
@@ -143,8 +174,9 @@ def load_checkpoint(path, problem: FitProblem, settings: SearchSettings) -> dict
                          "earlier fit")
     if state["version"] != CHECKPOINT_VERSION or state["fingerprint"] != fingerprint(problem):
         raise ModelError("resume", f"checkpoint {name} belongs to another fit (target, "
-                         "model, bounds, method or step differ); allowed: the same settings")
-    for key in ("seed", "population_per_parameter"):
+                         "model, bounds, method, step or weights differ, or an older "
+                         "torquesim made it); allowed: the same settings")
+    for key in ("search", "seed", "population_per_parameter", "starts"):
         if state[key] != getattr(settings, key):
             raise ModelError("resume", f"checkpoint {name} was made with {key} = "
                              f"{state[key]}, not {getattr(settings, key)}; allowed: the same "
@@ -182,6 +214,10 @@ def _explain_failed_start(problem: FitProblem, x) -> None:
                          f"{run.stability.largest_safe_step * 1e3:.3g} ms, or --method imex")
 
 
+class _Stop(Exception):
+    """Raised inside a least-squares residual evaluation to stop the search."""
+
+
 def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
             checkpoint: str | Path | None = None, resume: dict | None = None,
             progress: Callable[[str], None] | None = None,
@@ -189,152 +225,285 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
             should_stop: Callable[[], bool] = lambda: False) -> FitOutcome:
     """Fit the activation ramps of ``problem`` (module docstring).
 
-    ``should_stop`` is polled once per generation / polish simulation batch; when it returns
-    True the fit stops, checkpoints and returns the best so far with ``interrupted=True``.
-    ``progress(message)`` receives a line now and then; ``tick(stage, done, total)`` is called
-    after every generation (stage ``"search"``) and polish step (``"polish"``, counted in
-    simulations), for a progress bar.
+    ``should_stop`` is polled at every simulation batch; when it returns True the fit stops,
+    checkpoints and returns the best so far with ``interrupted=True``. ``progress(message)``
+    receives a line now and then; ``tick(stage, done, total)`` is called as work is done
+    (stages ``"least squares"`` counted in starts, ``"search"`` in generations, ``"polish"``
+    in simulations), for a progress bar.
     """
     say = progress or (lambda _msg: None)
     space = problem.space
     free = space.free
     if free.size == 0:
         raise ModelError("freeze", "every parameter is frozen; allowed: at least one free")
-    start = time.perf_counter()
-    prior_wall = 0.0
+    run = _Run(problem, settings, checkpoint, say, tick, should_stop)
     if resume is None:
-        guess = initial_guess(problem.model, problem.target, space)
+        guess = initial_guess(problem)
         scores, failed = problem.evaluate(guess)
         guess_score = float(scores[0])
         if failed[0] and problem.explicit_muscles:
             _explain_failed_start(problem, guess)
-        say(f"initial guess (inverse dynamics): {guess_score:.3f} deg RMS")
-        state = {"version": CHECKPOINT_VERSION, "fingerprint": fingerprint(problem),
-                 "seed": settings.seed,
-                 "population_per_parameter": settings.population_per_parameter,
-                 "stage": "search", "generations_done": 0, "polish_done": 0,
-                 "simulations": problem.simulations, "failed": problem.failed_simulations,
-                 "initial_score": guess_score, "initial_x": guess, "best_x": guess,
-                 "best_score": guess_score, "history": [[problem.simulations, 0.0,
-                                                         guess_score]]}
-        rng = np.random.default_rng(settings.seed)
-        size = settings.population_per_parameter * free.size
-        state["population"] = _initial_population(problem, guess, size, rng)
+        say(f"initial guess (inverse dynamics): {guess_score:.3f} deg")
+        run.state = {"version": CHECKPOINT_VERSION, "fingerprint": fingerprint(problem),
+                     "search": settings.search, "seed": settings.seed,
+                     "population_per_parameter": settings.population_per_parameter,
+                     "starts": settings.starts,
+                     "stage": "search", "generations_done": 0, "polish_done": 0,
+                     "simulations": problem.simulations, "failed": problem.failed_simulations,
+                     "initial_score": guess_score, "initial_x": guess, "best_x": guess,
+                     "best_score": guess_score,
+                     "history": [[problem.simulations, 0.0, guess_score]]}
+        if settings.search == "global":
+            rng = np.random.default_rng(settings.seed)
+            size = settings.population_per_parameter * free.size
+            run.state["population"] = _initial_population(problem, guess, size, rng)
+        else:
+            run.state["population"] = np.zeros((0, free.size))
     else:
-        state = dict(resume)
+        run.state = state = dict(resume)
         problem.simulations = int(state["simulations"])
         problem.failed_simulations = int(state["failed"])
-        prior_wall = float(state.get("wall_time", 0.0))
+        run.prior_wall = float(state.get("wall_time", 0.0))
         state["history"] = [list(h) for h in np.atleast_2d(state["history"])]
+        state["best_x"] = np.asarray(state["best_x"], dtype=float)
         # A larger budget than the checkpoint's reopens the search or the polish.
-        if int(state["generations_done"]) < settings.generations:
+        if settings.search == "least-squares":
+            if state["stage"] != "done" or int(state["generations_done"]) < settings.starts:
+                state["stage"] = "search"
+        elif int(state["generations_done"]) < settings.generations:
             state["stage"] = "search"
         elif int(state["polish_done"]) < settings.polish_simulations:
             state["stage"] = "polish"
-        say(f"resuming at {state['stage']}: {state['generations_done']} generations, "
-            f"best {float(state['best_score']):.3f} deg RMS")
-    base = np.array(state["initial_x"], dtype=float)
-    last_save = [time.perf_counter()]
-    interrupted = [False]
-
-    def elapsed() -> float:
-        return prior_wall + time.perf_counter() - start
-
-    def out_of_time() -> bool:
-        return settings.max_time is not None and elapsed() >= settings.max_time
-
-    def keep(x_free, score) -> None:
-        if score < state["best_score"]:
-            state["best_score"] = float(score)
-            state["best_x"] = space.full(x_free, base)
-        state["simulations"] = problem.simulations
-        state["failed"] = problem.failed_simulations
-        state["wall_time"] = elapsed()
-
-    def save(force=False) -> None:
-        if checkpoint is not None and (force or time.perf_counter() - last_save[0]
-                                       >= settings.checkpoint_every):
-            state["wall_time"] = elapsed()
-            save_checkpoint(checkpoint, {**state, "history": np.array(state["history"])})
-            last_save[0] = time.perf_counter()
-
-    def objective(x_free_columns):
-        rows = np.array([space.full(x, base) for x in np.atleast_2d(x_free_columns.T)])
-        return problem.evaluate(rows)[0]
-
-    remaining = settings.generations - int(state["generations_done"])
-    if state["stage"] == "search" and remaining > 0:
-        bounds = space.bounds()
-        if resume is not None:  # the best so far (perhaps from a polish) takes part
-            state["population"] = np.array(state["population"], dtype=float)
-            state["population"][-1] = np.asarray(state["best_x"])[free]
-
-        def on_generation(intermediate_result):
-            state["generations_done"] += 1
-            state["population"] = np.array(intermediate_result.population)
-            keep(intermediate_result.x, intermediate_result.fun)
-            state["history"].append([problem.simulations, elapsed(), state["best_score"]])
-            if tick:
-                tick("search", int(state["generations_done"]), settings.generations)
-            if state["generations_done"] % 10 == 0:
-                say(f"search  generation {state['generations_done']}/{settings.generations}  "
-                    f"best {state['best_score']:.3f} deg RMS  {problem.simulations} "
-                    f"simulations  {elapsed():.1f} s")
-            save()
-            if should_stop():
-                interrupted[0] = True
-            return interrupted[0] or out_of_time()
-
-        # Each resumed segment draws from its own stream: seed and generation fix it.
-        differential_evolution(
-            objective, bounds, init=np.clip(state["population"], *np.array(bounds).T),
-            maxiter=remaining, rng=np.random.default_rng([settings.seed,
-                                                          int(state["generations_done"])]),
-            vectorized=True, updating="deferred", polish=False, tol=0.0,
-            mutation=(0.5, 1.0), recombination=0.9, callback=on_generation)
-        state["simulations"] = problem.simulations
-    if not interrupted[0] and not out_of_time() and state["stage"] == "search":
-        state["stage"] = "polish"
-        save(force=True)
-    budget = settings.polish_simulations - int(state["polish_done"])
-    if state["stage"] == "polish" and budget > 0 and not interrupted[0] and not out_of_time():
-        say(f"polish  Nelder-Mead from {state['best_score']:.3f} deg RMS")
-        before = problem.simulations
-        done_before = int(state["polish_done"])
-
-        def single(x_free):
-            return objective(np.asarray(x_free)[:, None])[0]
-
-        def on_step(intermediate_result):
-            keep(intermediate_result.x, intermediate_result.fun)
-            state["polish_done"] = done_before + problem.simulations - before
-            if tick:
-                tick("polish", int(state["polish_done"]), settings.polish_simulations)
-            save()
-            if should_stop():
-                interrupted[0] = True
-            if interrupted[0] or out_of_time():
-                raise StopIteration
-
-        result = minimize(single, state["best_x"][free], method="Nelder-Mead",
-                          bounds=space.bounds(), callback=on_step,
-                          options={"maxfev": budget, "xatol": 1e-6, "fatol": 1e-6,
-                                   "adaptive": True})
-        keep(result.x, result.fun)
-        state["polish_done"] = done_before + problem.simulations - before
-        state["history"].append([problem.simulations, elapsed(), state["best_score"]])
-        if not interrupted[0] and not out_of_time():
-            state["stage"] = "done"
-    if state["stage"] == "polish" and budget <= 0:
-        state["stage"] = "done"
-    save(force=True)
+        say(f"resuming at {state['stage']}: {state['generations_done']} "
+            f"{'starts' if settings.search == 'least-squares' else 'generations'} done, "
+            f"best {float(state['best_score']):.3f} deg")
+    if settings.search == "least-squares":
+        run.least_squares()
+    else:
+        run.differential_evolution()
+        run.polish()
+    state = run.state
+    run.save(force=True)
     return FitOutcome(np.array(state["best_x"]), float(state["best_score"]),
                       np.array(state["initial_x"]), float(state["initial_score"]),
-                      problem.simulations, problem.failed_simulations, elapsed(),
-                      int(state["generations_done"]), int(state["polish_done"]), interrupted[0],
-                      [list(h) for h in state["history"]])
+                      problem.simulations, problem.failed_simulations, run.elapsed(),
+                      int(state["generations_done"]), int(state["polish_done"]),
+                      run.interrupted, [list(h) for h in state["history"]])
 
 
-def parameter_table(x) -> dict[str, float]:
-    """Name → value of an 18-vector."""
-    return {name: float(v) for name, v in zip(PARAMETER_NAMES, x, strict=True)}
+class _Run:
+    """The state of one fit and the searches that advance it."""
+
+    def __init__(self, problem, settings, checkpoint, say, tick, should_stop):
+        self.problem, self.settings = problem, settings
+        self.checkpoint, self.say, self.tick, self.should_stop = (checkpoint, say, tick,
+                                                                  should_stop)
+        self.space = problem.space
+        self.free = self.space.free
+        self.start = time.perf_counter()
+        self.prior_wall = 0.0
+        self.last_save = time.perf_counter()
+        self.interrupted = False
+        self.state: dict = {}
+
+    @property
+    def base(self) -> np.ndarray:
+        return np.array(self.state["initial_x"], dtype=float)
+
+    def elapsed(self) -> float:
+        return self.prior_wall + time.perf_counter() - self.start
+
+    def out_of_time(self) -> bool:
+        return self.settings.max_time is not None and self.elapsed() >= self.settings.max_time
+
+    def stopping(self) -> bool:
+        if self.should_stop():
+            self.interrupted = True
+        return self.interrupted or self.out_of_time()
+
+    def keep(self, x_free, score) -> None:
+        state = self.state
+        if score < state["best_score"]:
+            state["best_score"] = float(score)
+            state["best_x"] = self.space.full(x_free, self.base)
+        state["simulations"] = self.problem.simulations
+        state["failed"] = self.problem.failed_simulations
+        state["wall_time"] = self.elapsed()
+
+    def save(self, force=False) -> None:
+        if self.checkpoint is not None and (force or time.perf_counter() - self.last_save
+                                            >= self.settings.checkpoint_every):
+            self.state["wall_time"] = self.elapsed()
+            save_checkpoint(self.checkpoint, {**self.state,
+                                              "history": np.array(self.state["history"])})
+            self.last_save = time.perf_counter()
+
+    def record(self) -> None:
+        self.state["history"].append([self.problem.simulations, self.elapsed(),
+                                      self.state["best_score"]])
+
+    # -- least squares ---------------------------------------------------------------------
+    def starting_points(self) -> np.ndarray:
+        """The inverse-dynamics start and ``starts − 1`` seeded perturbations of it."""
+        lo = np.array(self.space.lower)[self.free]
+        hi = np.array(self.space.upper)[self.free]
+        guess = self.base[self.free]
+        rng = np.random.default_rng(self.settings.seed)
+        points = [guess]
+        for _ in range(self.settings.starts - 1):
+            points.append(np.clip(guess + rng.normal(0.0, 0.1, guess.size) * (hi - lo), lo, hi))
+        return np.array(points)
+
+    def jacobian(self, z) -> np.ndarray:
+        """∂r/∂z by central differences (one-sided at a bound), 2·len(z) simulations in
+        parallel; a column whose runs fail is 0."""
+        lo = np.array(self.space.lower)[self.free]
+        hi = np.array(self.space.upper)[self.free]
+        plus = np.minimum(z + DIFFERENCE_STEP, hi)
+        minus = np.maximum(z - DIFFERENCE_STEP, lo)
+        rows = np.empty((2 * z.size, self.space.size))
+        for i in range(z.size):
+            zp, zm = z.copy(), z.copy()
+            zp[i], zm[i] = plus[i], minus[i]
+            rows[2 * i] = self.space.full(zp, self.base)
+            rows[2 * i + 1] = self.space.full(zm, self.base)
+        residuals, failed = self.problem.residuals(rows)
+        jac = (residuals[0::2] - residuals[1::2]).T / (plus - minus)
+        jac[:, failed[0::2] | failed[1::2]] = 0.0
+        return jac
+
+    def _solve(self, z0, budget: int):
+        """Trust-region reflective least squares from ``z0`` for at most ``budget`` residual
+        evaluations; the result, or None when stopped."""
+        from scipy.optimize import least_squares
+
+        problem = self.problem
+
+        def residual(z):
+            if self.stopping():
+                raise _Stop
+            r, _ = problem.residuals(self.space.full(z, self.base))
+            self.keep(z, float(np.sqrt(r[0] @ r[0])))
+            self.save()
+            return r[0]
+
+        def jacobian(z):
+            if self.stopping():
+                raise _Stop
+            return self.jacobian(np.asarray(z, dtype=float))
+
+        lo, hi = np.array(self.space.bounds()).T
+        try:
+            return least_squares(residual, np.clip(z0, lo, hi), jac=jacobian, bounds=(lo, hi),
+                                 method="trf", max_nfev=budget, x_scale="jac", ftol=1e-6,
+                                 xtol=1e-8, gtol=1e-10)
+        except _Stop:
+            return None
+
+    def least_squares(self) -> None:
+        """Screen every start with :data:`SCREEN_EVALUATIONS` residual evaluations, then
+        refine the best screened point for up to ``iterations`` evaluations."""
+        state, problem, settings = self.state, self.problem, self.settings
+        if state["stage"] != "search":
+            return
+        points = self.starting_points()
+        screened = np.asarray(state["population"], dtype=float).reshape(-1, self.free.size + 1)
+        for k in range(int(state["generations_done"]), settings.starts):
+            result = self._solve(points[k], min(SCREEN_EVALUATIONS, settings.iterations))
+            if result is None:
+                self.record()
+                return
+            score = float(np.sqrt(2.0 * result.cost))
+            screened = np.vstack([screened, np.append(result.x, score)])
+            state["population"] = screened
+            state["generations_done"] = k + 1
+            self.record()
+            self.say(f"least squares  start {k + 1}/{settings.starts} screened: {score:.4f} "
+                     f"deg, {problem.simulations} simulations, {self.elapsed():.1f} s")
+            if self.tick:
+                self.tick("least squares", k + 1, settings.starts + 1)
+            self.save(force=True)
+        best = screened[int(np.argmin(screened[:, -1]))]
+        result = self._solve(best[:-1], settings.iterations)
+        if result is None:
+            self.record()
+            return
+        self.keep(result.x, float(np.sqrt(2.0 * result.cost)))
+        self.record()
+        self.say(f"least squares  refined: {np.sqrt(2.0 * result.cost):.4f} deg "
+                 f"({result.message}), {problem.simulations} simulations, "
+                 f"{self.elapsed():.1f} s")
+        if self.tick:
+            self.tick("least squares", settings.starts + 1, settings.starts + 1)
+        state["stage"] = "done"
+
+    # -- global: differential evolution and Nelder-Mead ------------------------------------
+    def objective(self, x_free_columns):
+        rows = np.array([self.space.full(x, self.base) for x in np.atleast_2d(x_free_columns.T)])
+        return self.problem.evaluate(rows)[0]
+
+    def differential_evolution(self) -> None:
+        state, settings = self.state, self.settings
+        remaining = settings.generations - int(state["generations_done"])
+        if state["stage"] == "search" and remaining > 0:
+            bounds = self.space.bounds()
+            state["population"] = np.array(state["population"], dtype=float)
+            state["population"][-1] = np.asarray(state["best_x"])[self.free]
+
+            def on_generation(intermediate_result):
+                state["generations_done"] += 1
+                state["population"] = np.array(intermediate_result.population)
+                self.keep(intermediate_result.x, intermediate_result.fun)
+                self.record()
+                if self.tick:
+                    self.tick("search", int(state["generations_done"]), settings.generations)
+                if state["generations_done"] % 10 == 0:
+                    self.say(f"search  generation {state['generations_done']}/"
+                             f"{settings.generations}  best {state['best_score']:.3f} deg  "
+                             f"{self.problem.simulations} simulations  {self.elapsed():.1f} s")
+                self.save()
+                return self.stopping()
+
+            # Each resumed segment draws from its own stream: seed and generation fix it.
+            differential_evolution(
+                self.objective, bounds, init=np.clip(state["population"], *np.array(bounds).T),
+                maxiter=remaining, rng=np.random.default_rng([settings.seed,
+                                                              int(state["generations_done"])]),
+                vectorized=True, updating="deferred", polish=False, tol=0.0,
+                mutation=(0.5, 1.0), recombination=0.9, callback=on_generation)
+            state["simulations"] = self.problem.simulations
+        if not self.interrupted and not self.out_of_time() and state["stage"] == "search":
+            state["stage"] = "polish"
+            self.save(force=True)
+
+    def polish(self) -> None:
+        state, settings, problem = self.state, self.settings, self.problem
+        budget = settings.polish_simulations - int(state["polish_done"])
+        if state["stage"] == "polish" and budget > 0 and not self.stopping():
+            self.say(f"polish  Nelder-Mead from {state['best_score']:.3f} deg")
+            before = problem.simulations
+            done_before = int(state["polish_done"])
+
+            def single(x_free):
+                return self.objective(np.asarray(x_free)[:, None])[0]
+
+            def on_step(intermediate_result):
+                self.keep(intermediate_result.x, intermediate_result.fun)
+                state["polish_done"] = done_before + problem.simulations - before
+                if self.tick:
+                    self.tick("polish", int(state["polish_done"]), settings.polish_simulations)
+                self.save()
+                if self.stopping():
+                    raise StopIteration
+
+            result = minimize(single, state["best_x"][self.free], method="Nelder-Mead",
+                              bounds=self.space.bounds(), callback=on_step,
+                              options={"maxfev": budget, "xatol": 1e-6, "fatol": 1e-6,
+                                       "adaptive": True})
+            self.keep(result.x, result.fun)
+            state["polish_done"] = done_before + problem.simulations - before
+            self.record()
+            if not self.stopping():
+                state["stage"] = "done"
+        if state["stage"] == "polish" and budget <= 0:
+            state["stage"] = "done"

@@ -1,12 +1,15 @@
-"""Inverse-dynamics initial guess for the fit.
+"""Inverse-dynamics initial guess for the fit, on any chain.
 
-1. Smooth the target (a smoothing spline, GCV) and differentiate: θ, ω, α.
-2. Net muscle torque the motion needs (body equation solved for T_net):
-   T_net = I_E·α − T_p(θ) + G·sin θ.
-3. Quasi-static activations: each CE moves with the joint (SE stretch changing slowly), so
-   a unit's torque is a·T_θ(θ_cc)·h(ω_cc) with ω_cc,F = ω, ω_cc,E = −ω and θ_cc from the SE
-   stretch. The extensor stays at its rest level while the flexor pulls; when the motion
-   needs more extension torque than that, the flexor drops to zero and the extensor supplies it.
+1. Smooth each scored joint's target (a smoothing spline, GCV) and differentiate: q, q̇, q̈.
+   Joints without a target stay at their initial angle.
+2. Net muscle torque per joint the motion needs: the body equation (docs/model.md §7) is
+   affine in the joint muscle torques, q̈ = q̈₀(q, q̇) + B(q)·τ, so τ = B⁻¹(q̈ − q̈₀), with B's
+   columns from n + 1 evaluations of :func:`~torquesim.model.body.joint_accelerations`.
+3. Quasi-static activations: each CE moves with its joint (SE stretch changing slowly), so a
+   unit of direction d carries a·T_θ(q + d·T/k)·h(d·q̇). Units with a rest level stay at it;
+   the torque still needed is carried by the units of its direction that start from
+   equilibrium (the agonists; all units of that direction if none does) at one common
+   level, the others of that direction at 0 (or their rest level).
 4. Ramps: the three-ramp profile of each unit closest (least squares) to its activation.
 """
 
@@ -16,48 +19,86 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..model.activation import activation
-from ..model.body import single_segment_acceleration
-from ..model.elbow import ElbowModel
+from ..model.body import body_work_size, joint_accelerations
 from ..model.torque_generator import ce_torque_velocity, torque_angle
 from .objective import PROFILE_SIZE, pack_profile
-from .parameters import PER_UNIT, RAMPS_PER_UNIT, ParameterSpace
-from .target import Target
+from .parameters import PER_UNIT, RAMPS_PER_UNIT
+
+#: Spacing of the inverse-dynamics grid, s.
+GRID = 0.005
 
 
-def required_torque(model: ElbowModel, target: Target, spacing: float = 0.005):
-    """(t, θ, ω, T_net) on a regular grid (s from the target start): the net muscle torque,
-    N·m, that makes the body follow the smoothed target."""
-    spline = target.smoothed()
+def required_torques(model, target, spacing: float = GRID):
+    """(t, q, q̇, τ) on a regular grid (s from the target start): joint angles and speeds
+    (n × samples) and the net muscle torque at each joint, N·m, that makes the body follow
+    the smoothed target. ``model`` is the fit's chain (starting at the target)."""
+    n = model.n_joints
     t = np.linspace(0.0, target.duration, int(round(target.duration / spacing)) + 1)
-    theta, omega, alpha = spline(t), spline.derivative(1)(t), spline.derivative(2)(t)
-    chain = model.to_chain()
-    seg, joints = chain.segment_array(), chain.joint_array().ravel()
-    inertia = model.body.elbow_inertia
-    free = np.array([single_segment_acceleration(x, 0.0, seg, joints) for x in theta])
-    return t, theta, omega, inertia * (alpha - free)
+    q = np.array([np.full(t.size, j.initial_angle) for j in model.joints])
+    qd, qdd = np.zeros_like(q), np.zeros_like(q)
+    names = [j.name for j in model.joints]
+    for row, joint in enumerate(target.joints):
+        spline = target.smoothed(row)
+        k = names.index(joint)
+        q[k], qd[k], qdd[k] = spline(t), spline.derivative(1)(t), spline.derivative(2)(t)
+    seg, joints = model.segment_array(), model.joint_array().ravel()
+    work = np.zeros(body_work_size(n))
+    acc = slice(n * n, n * n + n)
+    torque = np.empty_like(q)
+    for i in range(t.size):
+        y = np.concatenate([q[:, i], qd[:, i]])
+        joint_accelerations(y, n, np.zeros(n), seg, joints, work)
+        free = work[acc].copy()
+        columns = np.empty((n, n))
+        for j in range(n):
+            unit = np.zeros(n)
+            unit[j] = 1.0
+            joint_accelerations(y, n, unit, seg, joints, work)
+            columns[:, j] = work[acc] - free
+        torque[:, i] = np.linalg.solve(columns, qdd[:, i] - free)
+    return t, q, qd, torque
 
 
-def quasi_static_activations(model: ElbowModel, theta, omega, net_torque,
-                             extensor_rest: float):
-    """Flexor and extensor activation (0–1) that produce ``net_torque`` quasi-statically."""
-    pf, pe = model.flexor.to_array(), model.extensor.to_array()
-    k_f, k_e = model.flexor.se_stiffness, model.extensor.se_stiffness
-    a_f = np.empty_like(theta)
-    a_e = np.empty_like(theta)
-    for i, (th, om, torque) in enumerate(zip(theta, omega, net_torque, strict=True)):
-        cap_e = ce_torque_velocity(-om, pe)
-        torque_e = extensor_rest * cap_e * torque_angle(th, pe)
-        torque_e = extensor_rest * cap_e * torque_angle(th - torque_e / k_e, pe)
-        torque_f = torque + torque_e
-        cap_f = ce_torque_velocity(om, pf)
-        if torque_f > 0.0 and cap_f > 0.0:
-            a_f[i] = torque_f / (cap_f * torque_angle(th + torque_f / k_f, pf))
-            a_e[i] = extensor_rest
-        else:  # the motion needs extension beyond the extensor's rest torque
-            a_f[i] = 0.0
-            need = -torque
-            a_e[i] = need / (cap_e * torque_angle(th - need / k_e, pe)) if cap_e > 0 else 1.0
-    return np.clip(a_f, 0.0, 1.0), np.clip(a_e, 0.0, 1.0)
+def quasi_static_activations(model, q, qd, torque, rest_levels):
+    """Activation (units × samples, 0–1) of every unit that produces the joint torques
+    quasi-statically (module docstring). ``rest_levels[u]`` is None for units starting from
+    equilibrium."""
+    params = [u.parameters.to_array() for u in model.units]
+    names = [j.name for j in model.joints]
+    levels = np.zeros((model.n_units, q.shape[1]))
+
+    def capacity(u, unit, k, i, torque_guess):
+        """Torque of unit u at activation 1 and its SE stretch for ``torque_guess``."""
+        p = params[u]
+        d = unit.direction
+        return ce_torque_velocity(d * qd[k, i], p) * torque_angle(
+            q[k, i] + d * torque_guess / unit.parameters.se_stiffness, p)
+
+    for k, joint in enumerate(names):
+        members = [(u, unit) for u, unit in enumerate(model.units) if unit.joint == joint]
+        for i in range(q.shape[1]):
+            base = 0.0
+            for u, unit in members:
+                rest = rest_levels[u]
+                if rest is not None:
+                    cap = capacity(u, unit, k, i, rest * capacity(u, unit, k, i, 0.0))
+                    base += unit.direction * rest * cap
+                    levels[u, i] = rest
+            remaining = torque[k, i] - base
+            sign = 1 if remaining >= 0 else -1
+            agonists = [(u, unit) for u, unit in members if unit.direction == sign
+                        and rest_levels[u] is None] or \
+                [(u, unit) for u, unit in members if unit.direction == sign]
+            if not agonists:
+                continue
+            # agonists with a rest level give it up: their rest torque joins what they carry
+            need = abs(remaining) + sum(rest_levels[u] * capacity(u, unit, k, i, 0.0)
+                                        for u, unit in agonists if rest_levels[u] is not None)
+            caps = [capacity(u, unit, k, i, need / len(agonists)) for u, unit in agonists]
+            level = need / sum(caps) if sum(caps) > 0 else 1.0
+            for u, _unit in agonists:
+                levels[u, i] = level
+    return np.clip(levels, 0.0, 1.0)
 
 
 def fit_ramps(t, level, initial_level: float, lower, upper) -> np.ndarray:
@@ -88,15 +129,16 @@ def fit_ramps(t, level, initial_level: float, lower, upper) -> np.ndarray:
     return best.x
 
 
-def initial_guess(model: ElbowModel, target: Target, space: ParameterSpace) -> np.ndarray:
-    """An 18-vector from inverse dynamics (module docstring), inside the bounds. ``model``
-    is the fit's model, already starting at the target's first angle."""
-    t, theta, omega, torque = required_torque(model, target)
-    a_f, a_e = quasi_static_activations(model, theta, omega, torque, space.extensor_rest)
-    start = model.initial_state()
+def initial_guess(problem) -> np.ndarray:
+    """A parameter vector from inverse dynamics (module docstring), inside the bounds."""
+    model, space = problem.model, problem.space
+    t, q, qd, torque = required_torques(model, problem.target)
+    levels = quasi_static_activations(model, q, qd, torque, problem.initial_levels)
     lower, upper = np.array(space.lower), np.array(space.upper)
-    x = np.concatenate([
-        fit_ramps(t, a_f, start.flexor_level, lower[:PER_UNIT], upper[:PER_UNIT]),
-        fit_ramps(t, a_e, space.extensor_rest, lower[PER_UNIT:], upper[PER_UNIT:]),
-    ])
+    parts = []
+    for u in range(model.n_units):
+        window = slice(u * PER_UNIT, (u + 1) * PER_UNIT)
+        parts.append(fit_ramps(t, levels[u], problem.levels[u], lower[window], upper[window]))
+    x = np.concatenate(parts)
     return space.clip(space.full(x[space.free], x))
+

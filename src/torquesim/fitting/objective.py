@@ -1,9 +1,18 @@
-"""The fit's objective, compiled: simulate each candidate and score it against the target.
+"""The fit's objective, compiled: simulate candidates in parallel and return their residuals.
 
-Score (degrees) = RMS angle error + w_ω·RMS angular-velocity error (deg/s × 1 s)
-+ w_end·(|end angle error| + |end velocity error| × 1 s). A run that goes non-finite,
-diverges, or (explicit muscle solvers) exceeds the RK4 stability limit anywhere scores
-:data:`FAILED_SCORE`: its motion cannot be trusted, so it must not win.
+The residual vector r of a candidate (all angles in degrees, times in s) has, for every scored
+joint j with weight w_j (weights sum to 1) and target sample k = 1…K,
+
+    angle      √(w_j/K) · (q_j(t_k) − q*_j(t_k))
+    velocity   w_ω · √(w_j/K) · (q̇_j(t_k) − q̇*_j(t_k)) · 1 s                  (w_ω > 0)
+    end        w_end · √w_j · (q_j(T) − q*_j(T)),  w_end · √w_j · (q̇_j(T) − q̇*_j(T)) · 1 s
+    effort     √(w_a/K) · max(a_u(t_k) − rest_u, 0)  for every unit u         (w_a > 0)
+
+so that ‖r‖² = Σ_j w_j·MSE_j + w_ω²·(velocity MSE) + w_end²·(end errors²) + w_a·Σ_u mean_k
+(a_u − rest_u)₊². With every weight 0 and one joint, ‖r‖ is the RMS angle error. The score is
+‖r‖ (degrees). A run that goes non-finite, diverges or (explicit muscle solvers) exceeds the
+RK4 stability limit anywhere fails: its residuals are all FAILED_SCORE/√R, score
+:data:`FAILED_SCORE`, so it can never win.
 """
 
 from __future__ import annotations
@@ -13,6 +22,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..model.activation import activation
 from ..solvers import fixed_step as fs
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
@@ -20,6 +30,7 @@ from .parameters import PER_UNIT, RAMPS_PER_UNIT
 FAILED_SCORE = 1.0e4
 MONOLITHIC, PARTITIONED = 0, 1
 PROFILE_SIZE = 2 + 3 * RAMPS_PER_UNIT
+DEG = 180.0 / math.pi
 
 
 @njit(cache=True, error_model="numpy")
@@ -38,16 +49,16 @@ def pack_profile(x, offset, initial_level, out):
 
 
 @njit(cache=True, error_model="numpy")
-def sample_motion(states, step, times, theta_out, omega_out):
-    """θ and ω at ``times`` (s from the start) from fixed-step states: cubic Hermite in θ
-    (using ω as its derivative), linear in ω."""
+def sample_joint(states, step, times, joint, n, theta_out, omega_out):
+    """Joint ``joint``'s q and q̇ at ``times`` (s from the start) from fixed-step states
+    (columns q then q̇ of n joints): cubic Hermite in q (q̇ as its derivative), linear in q̇."""
     last = states.shape[0] - 1
     for k in range(times.shape[0]):
         s = times[k] / step
         i = min(int(s), last - 1)
         u = s - i
-        th0, th1 = states[i, 0], states[i + 1, 0]
-        om0, om1 = states[i, 1], states[i + 1, 1]
+        th0, th1 = states[i, joint], states[i + 1, joint]
+        om0, om1 = states[i, n + joint], states[i + 1, n + joint]
         u2 = u * u
         u3 = u2 * u
         theta_out[k] = ((2 * u3 - 3 * u2 + 1) * th0 + (u3 - 2 * u2 + u) * step * om0
@@ -56,32 +67,12 @@ def sample_motion(states, step, times, theta_out, omega_out):
 
 
 @njit(cache=True, error_model="numpy")
-def score_motion(theta, omega, target_theta, target_omega, weight_velocity, weight_end):
-    """Score in degrees (module docstring) and the max angle error, deg."""
-    n = theta.shape[0]
-    sq, sq_w, worst = 0.0, 0.0, 0.0
-    for k in range(n):
-        e = theta[k] - target_theta[k]
-        sq += e * e
-        worst = max(worst, abs(e))
-        ew = omega[k] - target_omega[k]
-        sq_w += ew * ew
-    deg = 180.0 / math.pi
-    score = deg * math.sqrt(sq / n)
-    if weight_velocity > 0.0:
-        score += weight_velocity * deg * math.sqrt(sq_w / n)
-    if weight_end > 0.0:
-        score += weight_end * deg * (abs(theta[n - 1] - target_theta[n - 1])
-                                     + abs(omega[n - 1] - target_omega[n - 1]))
-    return score, deg * worst
-
-
-@njit(cache=True, error_model="numpy")
-def simulate_candidate(x, method, coupling, y0, step, n_steps, seg, joints, units, level_f,
-                       level_e, explicit_muscles, times, theta_out, omega_out):
-    """Simulate the 18-vector ``x`` on the elbow chain (packed ``seg``, ``joints``, ``units``:
-    flexor then extensor); fill θ, ω at ``times``. Returns True if the run is usable (finite,
-    not diverged, within the RK4 stability limit when explicit).
+def simulate_candidate(x, method, coupling, y0, step, n_steps, seg, joints, units, levels,
+                       explicit_muscles, times, scored, theta_out, omega_out, profiles):
+    """Simulate the ramp vector ``x`` (9 per unit) on the packed chain, unit u starting at
+    ``levels[u]``; fill q, q̇ of the ``scored`` joints at ``times`` (rows of ``theta_out``,
+    ``omega_out``) and the packed ``profiles``. True if the run is usable (finite, not
+    diverged, within the RK4 stability limit when explicit).
 
     The parameter arrays are copied first: candidates run in parallel threads, and the step
     loops' reference counting on arrays shared between threads would contend (measured: the
@@ -89,38 +80,88 @@ def simulate_candidate(x, method, coupling, y0, step, n_steps, seg, joints, unit
     """
     seg, joints, units, y0, coupling = seg.copy(), joints.copy(), units.copy(), y0.copy(), \
         coupling.copy()
-    profiles = np.empty((2, PROFILE_SIZE))
-    pack_profile(x, 0, level_f, profiles[0])
-    pack_profile(x, PER_UNIT, level_e, profiles[1])
-    states = np.empty((n_steps + 1, 4))
+    n = seg.shape[0]
+    for u in range(levels.shape[0]):
+        pack_profile(x, u * PER_UNIT, levels[u], profiles[u])
+    states = np.empty((n_steps + 1, y0.shape[0]))
     stats = np.zeros(fs.STATS_SIZE)
     if method == MONOLITHIC:
-        fs.rk4_monolithic(y0, step, n_steps, seg, joints, units, profiles, states, stats)
-    else:
+        if n == 1:
+            fs.rk4_monolithic(y0, step, n_steps, seg, joints, units, profiles, states, stats)
+        else:
+            fs.rk4_monolithic(y0, step, n_steps, seg, joints, units, profiles, states, stats,
+                              True)
+    elif n == 1:
         fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, coupling, states,
                            stats)
+    else:
+        fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, coupling, states,
+                           stats, True)
     if stats[fs.STATUS] != fs.OK:
         return False
     if explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
         return False
-    sample_motion(states, step, times, theta_out, omega_out)
+    for r in range(scored.shape[0]):
+        sample_joint(states, step, times, scored[r], n, theta_out[r], omega_out[r])
     return True
 
 
+@njit(cache=True, error_model="numpy")
+def fill_residual(theta, omega, target_theta, target_omega, weights, weight_velocity,
+                  weight_end, weight_effort, profiles, rests, times, out):
+    """The residual vector of one simulated candidate (module docstring) into ``out``."""
+    n_rows, n_samples = theta.shape
+    i = 0
+    scale = 1.0 / math.sqrt(n_samples)
+    for r in range(n_rows):
+        w = math.sqrt(weights[r]) * DEG
+        for k in range(n_samples):
+            out[i] = w * scale * (theta[r, k] - target_theta[r, k])
+            i += 1
+        if weight_velocity > 0.0:
+            for k in range(n_samples):
+                out[i] = weight_velocity * w * scale * (omega[r, k] - target_omega[r, k])
+                i += 1
+        if weight_end > 0.0:
+            last = n_samples - 1
+            out[i] = weight_end * w * (theta[r, last] - target_theta[r, last])
+            out[i + 1] = weight_end * w * (omega[r, last] - target_omega[r, last])
+            i += 2
+    if weight_effort > 0.0:
+        w = math.sqrt(weight_effort) * scale
+        for u in range(rests.shape[0]):
+            for k in range(n_samples):
+                out[i] = w * max(activation(times[k], profiles[u]) - rests[u], 0.0)
+                i += 1
+
+
+def residual_size(n_rows: int, n_samples: int, n_units: int, weight_velocity: float,
+                  weight_end: float, weight_effort: float) -> int:
+    """Length of the residual vector (module docstring)."""
+    per_row = n_samples * (1 + (weight_velocity > 0)) + 2 * (weight_end > 0)
+    return n_rows * per_row + (n_units * n_samples if weight_effort > 0 else 0)
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
-def score_population(population, method, coupling, y0, step, n_steps, seg, joints, units,
-                     level_f, level_e, explicit_muscles, times, target_theta, target_omega,
-                     weight_velocity, weight_end, scores, failed):
-    """Score every row of ``population`` (m × 18) in parallel threads."""
+def residual_population(population, method, coupling, y0, step, n_steps, seg, joints, units,
+                        levels, rests, explicit_muscles, times, scored, target_theta,
+                        target_omega, weights, weight_velocity, weight_end, weight_effort,
+                        residuals, failed):
+    """Residuals (rows of ``residuals``) and failure flags of every row of ``population``
+    (m × 9U), simulated in parallel threads."""
+    n_rows, n_samples = target_theta.shape
+    failed_value = FAILED_SCORE / math.sqrt(residuals.shape[1])
     for j in prange(population.shape[0]):
-        theta = np.empty(times.shape[0])
-        omega = np.empty(times.shape[0])
+        theta = np.empty((n_rows, n_samples))
+        omega = np.empty((n_rows, n_samples))
+        profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
         ok = simulate_candidate(population[j], method, coupling, y0, step, n_steps, seg, joints,
-                                units, level_f, level_e, explicit_muscles, times, theta, omega)
+                                units, levels, explicit_muscles, times, scored, theta, omega,
+                                profiles)
         if ok:
-            scores[j], _ = score_motion(theta, omega, target_theta, target_omega,
-                                        weight_velocity, weight_end)
+            fill_residual(theta, omega, target_theta, target_omega, weights, weight_velocity,
+                          weight_end, weight_effort, profiles, rests, times, residuals[j])
             failed[j] = False
         else:
-            scores[j] = FAILED_SCORE
+            residuals[j, :] = failed_value
             failed[j] = True

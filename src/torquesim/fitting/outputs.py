@@ -14,18 +14,20 @@ from .. import __version__
 from ..io.atomic import write_text_atomic
 from ..io.model_file import save_model
 from ..io.tables import write_table
+from ..model.activation import activation
 from ..solvers.simulate import simulate
-from .fit import FitOutcome, SearchSettings, parameter_table
+from .fit import FitOutcome, SearchSettings
 from .objective import FAILED_SCORE
 from .problem import FitProblem
 
 MODEL_FILE = "fitted_model.toml"
 MOTION_FILE = "fit_motion.csv"
+STORAGE_FILE = "fit_motion.sto"
 FIGURE_FILE = "fit.png"
 SUMMARY_FILE = "fit_summary.json"
 CHECKPOINT_FILE = "fit_checkpoint.npz"
 #: The files a fit leaves in its directory.
-FIT_FILES = (MODEL_FILE, MOTION_FILE, FIGURE_FILE, SUMMARY_FILE, CHECKPOINT_FILE)
+FIT_FILES = (MODEL_FILE, MOTION_FILE, STORAGE_FILE, FIGURE_FILE, SUMMARY_FILE, CHECKPOINT_FILE)
 #: The fit's own error and the reference re-simulation's may differ by this much (deg RMS)
 #: before the summary warns that the fit leans on the integrator's error.
 TRUST_MARGIN_DEG = 0.25
@@ -33,14 +35,15 @@ TRUST_MARGIN_DEG = 0.25
 
 def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings) -> dict:
     """Re-simulate the best candidate with the fit's technique and the reference solver and
-    collect the figures of the fit."""
+    collect the figures of the fit: errors per joint, each unit's mean activation."""
     model = problem.model_for(outcome.x)
     fitted = simulate(model, problem.method, problem.step, coupling=problem.coupling,
                       check=False)
     reference = simulate(model, "reference", output_step=problem.step, check=False)
-    rms, worst = problem.errors_deg(fitted) if fitted.success else (math.inf, math.inf)
-    ref_rms, ref_worst = (problem.errors_deg(reference) if reference.success
-                          else (math.inf, math.inf))
+    failed = {j: (math.inf, math.inf) for j in problem.target.joints}
+    errors = problem.errors_deg(fitted) if fitted.success else failed
+    ref_errors = problem.errors_deg(reference) if reference.success else failed
+    rms, ref_rms = problem.overall_rms(errors), problem.overall_rms(ref_errors)
     warnings = []
     if outcome.score >= FAILED_SCORE:
         warnings.append("no candidate simulated usably (every run failed or broke the RK4 "
@@ -51,21 +54,32 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
                         "smaller --step or --method imex")
     if fitted.message:  # stability limit broken, or activation ramps not resolved
         warnings.append(fitted.message)
+    free = set(problem.space.free.tolist())
     return {
         "torquesim_version": __version__,
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
         "target": {"source": problem.target.source, "samples": int(problem.target.time.size),
-                   "duration_s": problem.target.duration},
+                   "duration_s": problem.target.duration,
+                   "joints": list(problem.target.joints)},
+        "model": problem.model.name,
         "method": fitted.method, "step_s": problem.step,
         "step_requested_s": problem.requested_step,
-        "weights": {"velocity": problem.weight_velocity, "end_state": problem.weight_end},
-        "extensor_rest_level": problem.space.extensor_rest,
-        "flexor_initial_level": problem.level_f,
-        "free_parameters": [n for i, n in enumerate(parameter_table(outcome.x))
-                            if i in set(problem.space.free.tolist())],
+        "search": settings.search,
+        "weights": {"joints": dict(zip(problem.target.joints, problem.weights.tolist(),
+                                       strict=True)),
+                    "velocity": problem.weight_velocity, "end_state": problem.weight_end,
+                    "effort": problem.weight_effort},
+        "initial_levels": dict(zip(problem.space.units, problem.levels.tolist(), strict=True)),
+        "mean_activation": problem.mean_activations(outcome.x),
+        "free_parameters": [n for i, n in enumerate(problem.space.names) if i in free],
         "frozen": dict(problem.space.frozen),
-        "rms_error_deg": rms, "max_error_deg": worst,
-        "reference_rms_error_deg": ref_rms, "reference_max_error_deg": ref_worst,
+        "rms_error_deg": rms, "max_error_deg": max(e[1] for e in errors.values()),
+        "reference_rms_error_deg": ref_rms,
+        "reference_max_error_deg": max(e[1] for e in ref_errors.values()),
+        "joints": {j: {"rms_error_deg": errors[j][0], "max_error_deg": errors[j][1],
+                       "reference_rms_error_deg": ref_errors[j][0],
+                       "reference_max_error_deg": ref_errors[j][1]}
+                   for j in problem.target.joints},
         "objective_deg": outcome.score, "initial_guess_objective_deg": outcome.initial_score,
         "simulations": outcome.simulations, "failed_simulations": outcome.failed_simulations,
         "wall_time_s": outcome.wall_time,
@@ -75,8 +89,8 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         "history": {"columns": ["simulations", "wall_time_s", "best_objective_deg"],
                     "rows": outcome.history},
         "settings": settings.__dict__,
-        "parameters": parameter_table(outcome.x),
-        "initial_guess": parameter_table(outcome.initial_x),
+        "parameters": problem.space.table(outcome.x),
+        "initial_guess": problem.space.table(outcome.initial_x),
         "warnings": warnings,
         "machine": {"python": platform.python_version(), "platform": platform.platform()},
         "_results": (fitted, reference),
@@ -84,46 +98,76 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
     }
 
 
+def motion_columns(problem: FitProblem, summary: dict, units: str) -> dict[str, np.ndarray]:
+    """time; per joint the target (scored joints), fitted and reference angle; per unit the
+    activation. Angles in ``units`` ("deg" or "rad")."""
+    fitted, reference = summary["_results"]
+    convert = np.degrees if units == "deg" else np.asarray
+    elapsed = problem.target.elapsed
+    columns = {"time": problem.target.time}
+    for j, joint in enumerate(fitted.model.joints):
+        if joint.name in problem.target.joints:
+            row = problem.target.joints.index(joint.name)
+            columns[f"{joint.name}_target"] = convert(problem.target.angles[row])
+        columns[f"{joint.name}_fitted"] = convert(np.interp(elapsed, fitted.time,
+                                                            fitted.q[:, j]))
+        columns[f"{joint.name}_reference"] = convert(np.interp(elapsed, reference.time,
+                                                               reference.q[:, j]))
+    packed = fitted.model.pack(problem.levels)
+    for k, unit in enumerate(fitted.model.units):
+        columns[f"activation_{unit.name}"] = np.array(
+            [activation(t, packed.activations[k]) for t in elapsed])
+    return columns
+
+
 def write_outputs(out_dir, problem: FitProblem, outcome: FitOutcome, summary: dict) -> list[str]:
-    """Write model TOML, motion CSV, figure and summary JSON into ``out_dir`` (atomically)."""
+    """Write model TOML, motion CSV (degrees) and OpenSim storage (radians), figure and
+    summary JSON into ``out_dir`` (each atomically)."""
     from ..plots import plot_result, save_figure
 
     out = Path(out_dir)
     fitted, reference = summary["_results"]
     save_model(fitted.model, out / MODEL_FILE)
-    times = problem.target.time
+    write_table(out / MOTION_FILE, {k if k == "time" or k.startswith("activation") else
+                                    f"{k}_deg": v for k, v in
+                                    motion_columns(problem, summary, "deg").items()})
+    write_table(out / STORAGE_FILE, motion_columns(problem, summary, "rad"),
+                name="torquesim fit")
     elapsed = problem.target.elapsed
-    columns = {"time": times, "target_deg": np.degrees(problem.target.angle),
-               "fitted_deg": np.degrees(np.interp(elapsed, fitted.time, fitted.theta)),
-               "reference_deg": np.degrees(np.interp(elapsed, reference.time,
-                                                     reference.theta))}
-    elbow = problem.model_for(summary["_x"])
-    a_f, a_e = (elbow.flexor_activation(elapsed, problem.level_f),
-                elbow.extensor_activation(elapsed))
-    columns["activation_flexor"] = a_f
-    columns["activation_extensor"] = a_e
-    write_table(out / MOTION_FILE, columns)
-    figure = plot_result(reference, target=(elapsed, problem.target.angle))
+    figure = plot_result(reference, target={j: (elapsed, problem.target.angles[r])
+                                            for r, j in enumerate(problem.target.joints)})
     figure.suptitle(f"torquesim fit: {problem.target.source}; RMS "
                     f"{summary['reference_rms_error_deg']:.3f}° (reference solver)")
     save_figure(figure, out / FIGURE_FILE)
     public = {k: v for k, v in summary.items() if not k.startswith("_")}
     write_text_atomic(out / SUMMARY_FILE, json.dumps(public, indent=2, default=float) + "\n")
-    return [MODEL_FILE, MOTION_FILE, FIGURE_FILE, SUMMARY_FILE]
+    return [MODEL_FILE, MOTION_FILE, STORAGE_FILE, FIGURE_FILE, SUMMARY_FILE]
 
 
 def summary_lines(summary: dict) -> list[str]:
     """The printed summary."""
-    return [
+    joints = summary["joints"]
+    lines = [
         f"target        {summary['target']['source']} ({summary['target']['samples']} samples, "
         f"{summary['target']['duration_s']:g} s)",
-        f"method        {summary['method']}, step {summary['step_s'] * 1e3:.4g} ms",
-        f"angle error   RMS {summary['rms_error_deg']:.3f} deg, max "
-        f"{summary['max_error_deg']:.3f} deg",
-        f"reference     RMS {summary['reference_rms_error_deg']:.3f} deg, max "
-        f"{summary['reference_max_error_deg']:.3f} deg (fitted model re-simulated with Radau)",
+        f"method        {summary['method']}, step {summary['step_s'] * 1e3:.4g} ms, "
+        f"{summary['search']} search",
+    ]
+    for joint, e in joints.items():
+        lines.append(f"{joint:<13} RMS {e['rms_error_deg']:.3f} deg, max "
+                     f"{e['max_error_deg']:.3f} deg; reference RMS "
+                     f"{e['reference_rms_error_deg']:.3f} deg, max "
+                     f"{e['reference_max_error_deg']:.3f} deg")
+    if len(joints) > 1:
+        lines.append(f"all joints    RMS {summary['rms_error_deg']:.3f} deg; reference RMS "
+                     f"{summary['reference_rms_error_deg']:.3f} deg")
+    lines += [
+        "reference     = the fitted model re-simulated with Radau",
+        "activation    mean " + ", ".join(f"{u} {a:.3f}"
+                                          for u, a in summary["mean_activation"].items()),
         f"start         {summary['initial_guess_objective_deg']:.3f} deg (inverse dynamics)",
         f"simulations   {summary['simulations']} ({summary['failed_simulations']} failed), "
         f"{summary['simulations_per_second']:.0f} per second",
         f"wall time     {summary['wall_time_s']:.1f} s",
-    ] + [f"warning: {w}" for w in summary["warnings"]]
+    ]
+    return lines + [f"warning: {w}" for w in summary["warnings"]]

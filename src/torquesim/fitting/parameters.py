@@ -1,4 +1,11 @@
-"""The fitted parameters: 3 ramps × (delay, duration, level) for each unit, 18 in all."""
+"""The fitted parameters: 3 ramps × (delay, duration, level) for every unit of the model.
+
+A parameter is named ``UNIT.rampK.FIELD`` after the model's unit, e.g.
+``elbow_flexor.ramp1.delay`` (9 per unit, units in model order). ``JOINT.flexor`` and
+``JOINT.extensor`` name the joint's one unit of that direction (``elbow.flexor.ramp1.delay``),
+and on a one-joint model the bare ``flexor``/``extensor`` do too (``flexor.ramp1.delay``, the
+names of torquesim 0.2's elbow fit).
+"""
 
 from __future__ import annotations
 
@@ -9,75 +16,139 @@ import numpy as np
 from ..errors import ModelError, check_range
 from ..model.activation import ActivationProfile, Ramp
 
-UNITS = ("flexor", "extensor")
 RAMPS_PER_UNIT = 3
 RAMP_FIELDS = ("delay", "duration", "level")
-#: ``flexor.ramp1.delay`` … ``extensor.ramp3.level``, in vector order.
-PARAMETER_NAMES = tuple(f"{unit}.ramp{i + 1}.{name}" for unit in UNITS
-                        for i in range(RAMPS_PER_UNIT) for name in RAMP_FIELDS)
 PER_UNIT = RAMPS_PER_UNIT * len(RAMP_FIELDS)
-#: Default bounds per ramp field (s, s, activation), as the fit issue specifies.
+#: Default bounds per ramp field (s, s, activation).
 DEFAULT_BOUNDS = {"delay": (0.0, 1.0), "duration": (0.05, 0.8), "level": (0.0, 1.0)}
 #: The physical limits a user's bounds must stay inside.
 HARD_LIMITS = {"delay": (0.0, 600.0), "duration": (1e-3, 600.0), "level": (0.0, 1.0)}
-DEFAULT_EXTENSOR_REST = 0.1
+#: The units of torquesim's default elbow model, in model order.
+ELBOW_UNITS = ("elbow_flexor", "elbow_extensor")
+NAME_HELP = "UNIT.ramp1|2|3.delay|duration|level, UNIT one of"
+
+
+def parameter_names(units) -> tuple[str, ...]:
+    """``UNIT.rampK.FIELD`` for every unit, ramp and field, in vector order."""
+    return tuple(f"{unit}.ramp{i + 1}.{name}" for unit in units
+                 for i in range(RAMPS_PER_UNIT) for name in RAMP_FIELDS)
 
 
 def _field_of(name: str) -> str:
     return name.rsplit(".", 1)[1]
 
 
+def unit_aliases(model) -> dict[str, str]:
+    """Other names of each unit of a chain: ``JOINT.flexor``/``JOINT.extensor`` for the
+    joint's only unit of that direction, and on a one-joint model ``flexor``/``extensor``."""
+    aliases = {}
+    for joint in model.joints:
+        for direction, role in ((1, "flexor"), (-1, "extensor")):
+            units = [u.name for u in model.units if u.joint == joint.name
+                     and u.direction == direction]
+            if len(units) == 1:
+                aliases[f"{joint.name}.{role}"] = units[0]
+                if model.n_joints == 1:
+                    aliases[role] = units[0]
+    return aliases
+
+
 @dataclass(frozen=True)
 class ParameterSpace:
-    """Bounds and frozen values of the 18 ramp parameters.
+    """Bounds and frozen values of the ramp parameters of a model's units.
 
     Attributes
     ----------
-    lower, upper : tuple of float
-        Bounds in :data:`PARAMETER_NAMES` order. Defaults: delays [0, 1] s, durations
-        [0.05, 0.8] s, levels [0, 1].
+    units : tuple of str
+        The model's unit names, in model order; 9 parameters each. Default: the elbow's.
+    lower, upper : tuple of float or None
+        Bounds in :func:`parameter_names` order; None gives the defaults: delays [0, 1] s,
+        durations [0.05, 0.8] s, levels [0, 1].
     frozen : dict
         Parameter name → fixed value; those are not searched.
-    extensor_rest : float
-        The extensor's initial (rest) activation, a setting, not fitted. Default 0.1
-        (docs/model.md). The flexor's initial level comes from static equilibrium.
+    rest_level : float or None
+        Initial (rest) activation of every unit whose model gives one (the antagonists; the
+        others start from static equilibrium). None: each unit's own. Bounds [0, 1].
+    aliases : dict
+        Other names of units (see :func:`unit_aliases`).
     """
 
-    lower: tuple[float, ...] = tuple(DEFAULT_BOUNDS[_field_of(n)][0] for n in PARAMETER_NAMES)
-    upper: tuple[float, ...] = tuple(DEFAULT_BOUNDS[_field_of(n)][1] for n in PARAMETER_NAMES)
+    units: tuple[str, ...] = ELBOW_UNITS
+    lower: tuple[float, ...] | None = None
+    upper: tuple[float, ...] | None = None
     frozen: dict = field(default_factory=dict)
-    extensor_rest: float = DEFAULT_EXTENSOR_REST
+    rest_level: float | None = None
+    aliases: dict = field(default_factory=lambda: {"flexor": ELBOW_UNITS[0],
+                                                   "extensor": ELBOW_UNITS[1],
+                                                   "elbow.flexor": ELBOW_UNITS[0],
+                                                   "elbow.extensor": ELBOW_UNITS[1]})
+
+    @classmethod
+    def for_model(cls, model, **kwargs) -> ParameterSpace:
+        """The space of ``model``'s units (a :class:`~torquesim.model.chain.ChainModel`)."""
+        return cls(units=tuple(u.name for u in model.units), aliases=unit_aliases(model),
+                   **kwargs)
 
     def __post_init__(self) -> None:
-        check_range("extensor_rest", self.extensor_rest, 0.0, 1.0)
-        for i, name in enumerate(PARAMETER_NAMES):
+        names = self.names
+        defaults = [DEFAULT_BOUNDS[_field_of(n)] for n in names]
+        if self.lower is None:
+            object.__setattr__(self, "lower", tuple(d[0] for d in defaults))
+        if self.upper is None:
+            object.__setattr__(self, "upper", tuple(d[1] for d in defaults))
+        if not len(self.lower) == len(self.upper) == len(names):
+            raise ModelError("bounds", f"{len(self.lower)} lower and {len(self.upper)} upper "
+                             f"bounds; allowed: {len(names)}, one per parameter")
+        if self.rest_level is not None:
+            check_range("rest_level", self.rest_level, 0.0, 1.0)
+        for i, name in enumerate(names):
             low, high = HARD_LIMITS[_field_of(name)]
             check_range(f"bounds.{name}", self.lower[i], low, high)
             check_range(f"bounds.{name}", self.upper[i], low, high)
             if self.lower[i] > self.upper[i]:
                 raise ModelError(f"bounds.{name}", f"lower {self.lower[i]:g} > upper "
                                  f"{self.upper[i]:g}; allowed lower ≤ upper")
+        resolved = {}
         for name, value in self.frozen.items():
-            if name not in PARAMETER_NAMES:
-                raise ModelError("freeze", f"{name!r} is not a parameter; allowed: "
-                                 "flexor|extensor.ramp1|2|3.delay|duration|level")
-            low, high = HARD_LIMITS[_field_of(name)]
+            canonical = self.resolve(name, "freeze")
+            low, high = HARD_LIMITS[_field_of(canonical)]
             check_range(f"freeze.{name}", value, low, high)
+            resolved[canonical] = float(value)
+        object.__setattr__(self, "frozen", resolved)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return parameter_names(self.units)
+
+    @property
+    def size(self) -> int:
+        return len(self.units) * PER_UNIT
+
+    def resolve(self, name: str, what: str = "parameter") -> str:
+        """The canonical name of ``name`` (a unit alias replaced by the unit's name)."""
+        unit, dot, rest = name.rpartition(".ramp")
+        canonical = f"{self.aliases.get(unit, unit)}{dot}{rest}"
+        if canonical not in self.names:
+            raise ModelError(what, f"{name!r} is not a parameter; allowed: {NAME_HELP} "
+                             f"{', '.join(self.units)}")
+        return canonical
+
+    def index(self, name: str) -> int:
+        return self.names.index(self.resolve(name))
 
     def with_bounds(self, name: str, low: float, high: float) -> ParameterSpace:
-        i = _index(name, "bounds")
+        i = self.names.index(self.resolve(name, "bounds"))
         lower, upper = list(self.lower), list(self.upper)
         lower[i], upper[i] = low, high
         return replace(self, lower=tuple(lower), upper=tuple(upper))
 
     def with_frozen(self, name: str, value: float) -> ParameterSpace:
-        _index(name, "freeze")
-        return replace(self, frozen={**self.frozen, name: value})
+        return replace(self, frozen={**self.frozen, self.resolve(name, "freeze"): value})
 
     @property
     def free(self) -> np.ndarray:
-        """Indices (into the 18) of the searched parameters."""
-        return np.array([i for i, n in enumerate(PARAMETER_NAMES) if n not in self.frozen],
+        """Indices of the searched parameters."""
+        return np.array([i for i, n in enumerate(self.names) if n not in self.frozen],
                         dtype=np.int64)
 
     def bounds(self) -> list[tuple[float, float]]:
@@ -85,43 +156,46 @@ class ParameterSpace:
         return [(self.lower[i], self.upper[i]) for i in self.free]
 
     def full(self, free_values, base) -> np.ndarray:
-        """All 18 values: a copy of ``base`` (an 18-vector) with ``free_values`` in the free
-        slots and the frozen values in the frozen ones."""
+        """All values: a copy of ``base`` with ``free_values`` in the free slots and the
+        frozen values in the frozen ones."""
         x = np.array(base, dtype=float)
         for name, value in self.frozen.items():
-            x[PARAMETER_NAMES.index(name)] = value
+            x[self.names.index(name)] = value
         x[self.free] = free_values
         return x
 
     def clip(self, x) -> np.ndarray:
-        """An 18-vector moved inside the bounds."""
+        """``x`` moved inside the bounds."""
         return np.clip(np.asarray(x, dtype=float), self.lower, self.upper)
 
-
-def _index(name: str, what: str) -> int:
-    if name not in PARAMETER_NAMES:
-        raise ModelError(what, f"{name!r} is not a parameter; allowed: "
-                         "flexor|extensor.ramp1|2|3.delay|duration|level")
-    return PARAMETER_NAMES.index(name)
+    def table(self, x) -> dict[str, float]:
+        """Name → value of a parameter vector."""
+        return {name: float(v) for name, v in zip(self.names, x, strict=True)}
 
 
-def profiles(x, extensor_rest: float) -> tuple[ActivationProfile, ActivationProfile]:
-    """The flexor (initial level from equilibrium) and extensor profiles of an 18-vector."""
-    def ramps(offset: int) -> tuple[Ramp, ...]:
-        return tuple(Ramp(float(x[offset + 3 * i]), float(x[offset + 3 * i + 1]),
-                          float(x[offset + 3 * i + 2])) for i in range(RAMPS_PER_UNIT))
-
-    return (ActivationProfile(None, ramps(0)),
-            ActivationProfile(float(extensor_rest), ramps(PER_UNIT)))
+def ramps_of(x, unit_index: int) -> tuple[Ramp, ...]:
+    """The 3 ramps of unit ``unit_index`` in the parameter vector ``x``."""
+    o = unit_index * PER_UNIT
+    return tuple(Ramp(float(x[o + 3 * i]), float(x[o + 3 * i + 1]), float(x[o + 3 * i + 2]))
+                 for i in range(RAMPS_PER_UNIT))
 
 
-def vector(flexor: ActivationProfile, extensor: ActivationProfile) -> np.ndarray:
-    """The 18-vector of two 3-ramp profiles."""
+def vector(profiles) -> np.ndarray:
+    """The parameter vector of 3-ramp activation profiles (one per unit, in order)."""
     out = []
-    for profile, unit in ((flexor, "flexor"), (extensor, "extensor")):
+    for k, profile in enumerate(profiles):
         if len(profile.ramps) != RAMPS_PER_UNIT:
-            raise ModelError(f"{unit}_activation.ramps",
+            raise ModelError(f"units[{k}].activation.ramps",
                              f"has {len(profile.ramps)} ramps; the fit uses {RAMPS_PER_UNIT}")
         for ramp in profile.ramps:
             out += [ramp.delay, ramp.duration, ramp.level]
     return np.array(out)
+
+
+def with_ramps(model, x, initial_levels) -> object:
+    """``model`` (a chain) with every unit's activation the 3 ramps of ``x`` from
+    ``initial_levels`` (None: the model's; a number: that level; per unit)."""
+    units = tuple(replace(u, activation=ActivationProfile(
+        u.activation.initial_level if level is None else level, ramps_of(x, k)))
+        for k, (u, level) in enumerate(zip(model.units, initial_levels, strict=True)))
+    return model.replace(units=units)

@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import ModelError, check_range
-from ..model.elbow import ElbowModel, default_model
+from ..model.activation import activation
+from ..model.chain import ChainModel, as_chain
+from ..model.presets import preset
 from ..solvers.coupling import IMEX, Coupling
-from ..solvers.simulate import simulate
 from . import objective as obj
-from .parameters import ParameterSpace, profiles
+from .parameters import ParameterSpace, with_ramps
 from .target import Target
 
 FIT_METHODS = ("imex", "monolithic", "partitioned")
@@ -33,18 +34,35 @@ def fit_step(duration: float, requested: float) -> tuple[float, int]:
 class FitProblem:
     """Everything the objective needs, with the model's arrays packed once.
 
-    The model spans the target: θ0 = the first target angle (static equilibrium there, the
-    flexor's initial level from it), duration = target span. ``evaluate`` scores
-    candidate 18-vectors (see :mod:`torquesim.fitting.objective`) and counts simulations.
+    The model spans the target: each scored joint starts at its first target angle (the
+    others at the model's initial angle), at rest in static equilibrium, and the duration is
+    the target's span. Every unit's activation is 3 ramps (9 parameters,
+    :class:`ParameterSpace`) from its equilibrium or rest level. ``residuals`` and
+    ``evaluate`` simulate candidate parameter vectors (see
+    :mod:`torquesim.fitting.objective`) and count simulations.
+
+    Attributes
+    ----------
+    joint_weights : dict or None
+        Scored joint → weight ≥ 0 (normalised to sum 1). Default: equal weights.
+    weight_velocity, weight_end : float
+        Weights of the angular-velocity and end-state errors. Default 0. Bounds [0, 1000].
+    weight_effort : float
+        w_a, deg² per squared activation: adds w_a·Σ_u mean (a_u − rest_u)₊² to the squared
+        objective (rest_u: the unit's given initial level, 0 for units starting from
+        equilibrium), so that among fits of equal angle error the least effort wins. Default
+        0. Bounds [0, 1e6].
     """
 
     target: Target
-    space: ParameterSpace = field(default_factory=ParameterSpace)
-    base_model: ElbowModel | None = None
+    space: ParameterSpace | None = None
+    base_model: object = None
     method: str = DEFAULT_METHOD
     step: float = DEFAULT_STEP
     weight_velocity: float = 0.0
     weight_end: float = 0.0
+    weight_effort: float = 0.0
+    joint_weights: dict | None = None
     simulations: int = 0
     failed_simulations: int = 0
 
@@ -53,63 +71,122 @@ class FitProblem:
             raise ModelError("method", f"{self.method!r}; allowed: {', '.join(FIT_METHODS)}")
         check_range("weight_velocity", self.weight_velocity, 0.0, 1e3)
         check_range("weight_end", self.weight_end, 0.0, 1e3)
-        base = self.base_model or default_model()
-        if not isinstance(base, ElbowModel):
-            base = ElbowModel.from_chain(base, "fit")
+        check_range("weight_effort", self.weight_effort, 0.0, 1e6)
+        base = as_chain(self.base_model if self.base_model is not None
+                        else preset("builtin:elbow-curl"))
+        if not isinstance(base, ChainModel):
+            raise TypeError("base_model: expected a model")
+        if self.space is None:
+            self.space = ParameterSpace.for_model(base)
+        if self.space.units != tuple(u.name for u in base.units):
+            raise ModelError("model", f"the parameter space is for units "
+                             f"{', '.join(self.space.units)}, the model has "
+                             f"{', '.join(u.name for u in base.units)}")
+        names = [j.name for j in base.joints]
+        for joint in self.target.joints:
+            if joint not in names:
+                raise ModelError("target", f"scores joint {joint!r}, which the model does not "
+                                 f"have; allowed: {', '.join(names)}")
+        self.scored = np.array([names.index(j) for j in self.target.joints], dtype=np.int64)
+        weights = {j: 1.0 for j in self.target.joints} | dict(self.joint_weights or {})
+        for joint, w in weights.items():
+            if joint not in self.target.joints:
+                raise ModelError("weight", f"{joint!r} is not a scored joint; allowed: "
+                                 f"{', '.join(self.target.joints)}")
+            check_range(f"weight.{joint}", w, 0.0, 1e6)
+        raw = np.array([weights[j] for j in self.target.joints], dtype=float)
+        if raw.sum() <= 0:
+            raise ModelError("weight", "every joint weight is 0; allowed: at least one > 0")
+        self.weights = raw / raw.sum()
         self.requested_step = self.step
         self.step, self.n_steps = fit_step(self.target.duration, self.step)
-        flexor, extensor = profiles(np.array(self.space.upper), self.space.extensor_rest)
+        # initial levels: "equilibrium" units keep it; the others the rest level
+        self.initial_levels = [None if u.activation.initial_level is None
+                               else (u.activation.initial_level if self.space.rest_level is None
+                                     else self.space.rest_level) for u in base.units]
+        start_angles = dict(zip(self.target.joints, self.target.angles[:, 0], strict=True))
+        joints = tuple(j if j.name not in start_angles else
+                       _with_angle(j, float(start_angles[j.name])) for j in base.joints)
         try:
-            self.model = base.replace(initial_angle=float(self.target.angle[0]),
-                                      duration=self.target.duration,
-                                      flexor_activation=flexor, extensor_activation=extensor)
+            model = base.replace(joints=joints, duration=self.target.duration)
+            self.model = with_ramps(model, np.array(self.space.upper), self.initial_levels)
+            start = self.model.initial_state()
         except ModelError as exc:
-            raise ModelError("target", f"cannot start at its first angle "
-                             f"{math.degrees(self.target.angle[0]):.2f}°: {exc.reason}") from None
-        start = self.model.initial_state()
+            first = ", ".join(f"{j} {math.degrees(a):.2f}°" for j, a in start_angles.items())
+            raise ModelError("target", f"cannot start at its first angles ({first}): "
+                             f"{exc.reason}") from None
         self.y0 = start.state
-        self.level_f, self.level_e = start.flexor_level, start.extensor_level
+        self.levels = np.array(start.levels, dtype=float)
+        self.rests = np.array([0.0 if lv is None else lv for lv in self.initial_levels])
         self.coupling = {"imex": IMEX, "partitioned": Coupling(),
                          "monolithic": Coupling()}[self.method]
-        packed = self.model.to_chain().pack()
+        packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
         self.times = np.ascontiguousarray(self.target.elapsed)
-        self.target_omega = self.target.angular_velocity()
+        self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
+        self.target_angles = np.ascontiguousarray(self.target.angles)
+        self.residual_size = obj.residual_size(len(self.scored), self.times.size,
+                                               len(base.units), self.weight_velocity,
+                                               self.weight_end, self.weight_effort)
 
     @property
     def explicit_muscles(self) -> bool:
         return self.method != "imex"
 
-    def evaluate(self, population) -> tuple[np.ndarray, np.ndarray]:
-        """Scores (deg) and failure flags of the rows (18-vectors) of ``population``."""
+    def residuals(self, population) -> tuple[np.ndarray, np.ndarray]:
+        """Residual vectors (rows) and failure flags of the parameter vectors (rows) of
+        ``population``, simulated in parallel."""
         population = np.ascontiguousarray(np.atleast_2d(population), dtype=float)
-        scores = np.empty(population.shape[0])
+        out = np.empty((population.shape[0], self.residual_size))
         failed = np.zeros(population.shape[0], dtype=np.bool_)
         seg, joints, units = self.arrays
-        obj.score_population(
+        obj.residual_population(
             population, obj.MONOLITHIC if self.method == "monolithic" else obj.PARTITIONED,
             self.coupling.to_array(), self.y0, self.step, self.n_steps, seg, joints, units,
-            self.level_f, self.level_e, self.explicit_muscles, self.times, self.target.angle,
-            self.target_omega, self.weight_velocity, self.weight_end, scores, failed)
+            self.levels, self.rests, self.explicit_muscles, self.times, self.scored,
+            self.target_angles, self.target_omega, self.weights, self.weight_velocity,
+            self.weight_end, self.weight_effort, out, failed)
         self.simulations += population.shape[0]
         self.failed_simulations += int(failed.sum())
-        return scores, failed
+        return out, failed
 
-    def model_for(self, x) -> ElbowModel:
-        """The model with the activation profiles of the 18-vector ``x``."""
-        flexor, extensor = profiles(x, self.space.extensor_rest)
-        return self.model.replace(flexor_activation=flexor, extensor_activation=extensor)
+    def evaluate(self, population) -> tuple[np.ndarray, np.ndarray]:
+        """Scores ‖r‖ (deg) and failure flags of the rows of ``population``."""
+        residuals, failed = self.residuals(population)
+        return np.sqrt(np.einsum("ij,ij->i", residuals, residuals)), failed
 
-    def errors_deg(self, result) -> tuple[float, float]:
-        """(RMS, max) angle error of a simulation result at the target samples, deg."""
-        theta = np.interp(self.times, result.time, result.theta)
-        if result.step is not None:  # fixed step: the same Hermite sampling as the fit
-            omega = np.empty_like(theta)
-            obj.sample_motion(result.states, result.step, self.times, theta, omega)
-        error = np.degrees(theta - self.target.angle)
-        return float(np.sqrt(np.mean(error**2))), float(np.max(np.abs(error)))
+    def model_for(self, x) -> ChainModel:
+        """The model with the activation ramps of the parameter vector ``x``."""
+        return with_ramps(self.model, x, self.initial_levels)
 
-    def reference_errors_deg(self, x) -> tuple[float, float]:
-        """(RMS, max) angle error of ``x`` re-simulated with the reference solver, deg."""
-        ref = simulate(self.model_for(x), "reference", output_step=self.step)
-        return self.errors_deg(ref)
+    def errors_deg(self, result) -> dict[str, tuple[float, float]]:
+        """(RMS, max) angle error per scored joint of a simulation result at the target
+        samples, deg; fixed-step results are sampled as in the fit (cubic Hermite)."""
+        n = result.model.n_joints
+        out = {}
+        for row, (joint, j) in enumerate(zip(self.target.joints, self.scored, strict=True)):
+            if result.step is not None:
+                q, qd = np.empty_like(self.times), np.empty_like(self.times)
+                obj.sample_joint(result.states, result.step, self.times, int(j), n, q, qd)
+            else:
+                q = np.interp(self.times, result.time, result.q[:, j])
+            error = np.degrees(q - self.target.angles[row])
+            out[joint] = (float(np.sqrt(np.mean(error**2))), float(np.max(np.abs(error))))
+        return out
+
+    def overall_rms(self, errors: dict[str, tuple[float, float]]) -> float:
+        """√(Σ_j w_j·RMS_j²): the angle part of the objective, deg."""
+        return float(math.sqrt(sum(w * errors[j][0] ** 2
+                                   for j, w in zip(self.target.joints, self.weights,
+                                                   strict=True))))
+
+    def mean_activations(self, x) -> dict[str, float]:
+        """Each unit's mean activation over the target samples."""
+        model = self.model_for(x)
+        packed = model.pack(self.levels)
+        return {u.name: float(np.mean([activation(t, packed.activations[k]) for t in
+                                       self.times])) for k, u in enumerate(model.units)}
+
+
+def _with_angle(joint, angle: float):
+    return replace(joint, initial_angle=angle)

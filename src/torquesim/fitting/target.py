@@ -1,4 +1,5 @@
-"""The motion a fit must reproduce: a measured elbow angle history, or the built-in curl."""
+"""The motion a fit must reproduce: measured joint angle histories (one per scored joint), or
+a built-in minimum-jerk motion for each preset."""
 
 from __future__ import annotations
 
@@ -8,30 +9,46 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError
-from ..io.target_file import read_angle_history
+from ..io.target_file import read_angle_table
 
-BUILTIN_CURL = "builtin:curl"
-#: Sample interval of the built-in curl, s (100 Hz, a usual motion-capture rate).
+#: Sample interval of the built-in targets, s (100 Hz, a usual motion-capture rate).
 BUILTIN_SAMPLE_INTERVAL = 0.01
+BUILTIN_CURL = "builtin:curl"
 
 
 @dataclass(frozen=True)
 class Target:
-    """A target elbow angle history.
+    """Target joint angle histories.
 
     Attributes
     ----------
     time : ndarray
         Sample times, s, strictly increasing. The simulation starts at ``time[0]``.
-    angle : ndarray
-        Elbow flexion angle at those times, rad.
+    angles : ndarray
+        (joints, samples): the angle of each scored joint at those times, rad.
+    joints : tuple of str
+        The model joints scored, in the rows' order. Joints of the model not listed are
+        simulated but not scored.
     source : str
-        Where it came from (file name and column, or ``builtin:curl``).
+        Where it came from (file name and columns, or ``builtin:NAME``).
     """
 
     time: np.ndarray = field(repr=False)
-    angle: np.ndarray = field(repr=False)
+    angles: np.ndarray = field(repr=False)
+    joints: tuple[str, ...] = ("elbow",)
     source: str = ""
+
+    def __post_init__(self) -> None:
+        angles = np.atleast_2d(np.asarray(self.angles, dtype=float))
+        object.__setattr__(self, "angles", angles)
+        if angles.shape != (len(self.joints), np.size(self.time)):
+            raise ModelError("target", f"{angles.shape} angles for {len(self.joints)} joints "
+                             f"and {np.size(self.time)} samples")
+
+    @property
+    def angle(self) -> np.ndarray:
+        """The first scored joint's angle, rad."""
+        return self.angles[0]
 
     @property
     def duration(self) -> float:
@@ -43,40 +60,130 @@ class Target:
         """Sample times from the start of the target, s."""
         return self.time - self.time[0]
 
-    def smoothed(self):
-        """A smoothing spline θ(t − t0) through the samples (smoothing chosen by generalised
-        cross-validation, so exact data are nearly interpolated and noisy data are smoothed);
-        call ``.derivative(n)`` for ω and α."""
+    def smoothed(self, row: int = 0):
+        """A smoothing spline q(t − t0) through row ``row``'s samples (smoothing chosen by
+        generalised cross-validation: exact data are nearly interpolated, noisy data are
+        smoothed); ``.derivative(n)`` gives q̇ and q̈."""
         from scipy.interpolate import make_smoothing_spline
 
-        return make_smoothing_spline(self.elapsed, self.angle)
+        return make_smoothing_spline(self.elapsed, self.angles[row])
 
     def angular_velocity(self) -> np.ndarray:
-        """dθ/dt at the samples, rad/s (second-order finite differences)."""
-        return np.gradient(self.angle, self.time, edge_order=2)
+        """dq/dt at the samples, (joints, samples), rad/s (second-order differences)."""
+        return np.gradient(self.angles, self.time, axis=1, edge_order=2)
+
+
+def min_jerk(t, start: float, end: float, t0: float, t1: float) -> np.ndarray:
+    """start → end between t0 and t1 by the minimum-jerk quintic 10s³ − 15s⁴ + 6s⁵."""
+    s = np.clip((np.asarray(t) - t0) / (t1 - t0), 0.0, 1.0)
+    return start + (end - start) * s**3 * (10 - 15 * s + 6 * s**2)
 
 
 def min_jerk_curl(start_deg: float = 10.0, peak_deg: float = 135.0, half_time: float = 1.5,
                   sample_interval: float = BUILTIN_SAMPLE_INTERVAL) -> Target:
-    """docs/model.md §6: start → peak → start, each half a minimum-jerk quintic
-    θ = θ_a + (θ_b − θ_a)(10s³ − 15s⁴ + 6s⁵) lasting ``half_time`` s."""
+    """docs/model.md §6: start → peak → start, each half a minimum-jerk quintic lasting
+    ``half_time`` s."""
     n = int(round(2 * half_time / sample_interval))
     t = np.linspace(0.0, 2 * half_time, n + 1)
-    s = np.where(t <= half_time, t / half_time, (2 * half_time - t) / half_time)
-    blend = s**3 * (10 - 15 * s + 6 * s**2)
     a, b = math.radians(start_deg), math.radians(peak_deg)
-    return Target(t, a + (b - a) * blend, BUILTIN_CURL)
+    angle = np.where(t <= half_time, min_jerk(t, a, b, 0.0, half_time),
+                     min_jerk(t, b, a, half_time, 2 * half_time))
+    return Target(t, angle[None, :], ("elbow",), BUILTIN_CURL)
 
 
-def load_target(spec: str, column: str | None = None, units: str | None = None) -> Target:
-    """``builtin:curl`` or a CSV / OpenSim ``.mot``/``.sto`` file (see
-    :func:`torquesim.io.target_file.read_angle_history`)."""
-    if spec == BUILTIN_CURL:
-        return min_jerk_curl()
+def raise_hold_lower(joints: dict[str, tuple[float, float]], source: str) -> Target:
+    """Each joint start → peak (degrees) by minimum jerk in 0.1–1.3 s, a hold, and back
+    in 1.7–2.9 s; 3 s at 100 Hz (docs/presets.md: the motions the presets were made for)."""
+    t = np.linspace(0.0, 3.0, 301)
+    rows = []
+    for start, peak in joints.values():
+        a, b = math.radians(start), math.radians(peak)
+        rows.append(np.where(t <= 1.5, min_jerk(t, a, b, 0.1, 1.3), min_jerk(t, b, a, 1.7, 2.9)))
+    return Target(t, np.array(rows), tuple(joints), source)
+
+
+#: ``builtin:NAME`` targets: the motion of each preset.
+BUILTIN_TARGETS = {
+    "curl": min_jerk_curl,
+    "elbow-curl": min_jerk_curl,
+    "knee-extension": lambda: raise_hold_lower({"knee": (90.0, 15.0)},
+                                               "builtin:knee-extension"),
+    "arm-raise": lambda: raise_hold_lower({"shoulder": (5.0, 70.0), "elbow": (10.0, 70.0)},
+                                          "builtin:arm-raise"),
+}
+
+
+def _auto_column(joint, names: list[str], one_joint: bool) -> str | None:
+    """The column of ``joint`` by name: its coordinate, its name, the only column containing
+    its name, or (one-joint model) the only angle column."""
+    lower = {n.lower(): n for n in names}
+    for key in (joint.coordinate.lower(), joint.name.lower()):
+        if key in lower:
+            return lower[key]
+    containing = [n for n in names if joint.name.lower() in n.lower()]
+    if len(containing) == 1:
+        return containing[0]
+    if one_joint and len(names) == 1:
+        return names[0]
+    return None
+
+
+def load_target(spec: str, model=None, columns=None, units: str | None = None) -> Target:
+    """A target for ``model`` (a chain; default the elbow curl).
+
+    ``spec``: ``builtin:NAME`` (:data:`BUILTIN_TARGETS`) or a CSV / OpenSim ``.mot``/``.sto``
+    file (:func:`torquesim.io.target_file.read_angle_table`). Model joints are matched to
+    columns by name (the joint's coordinate, e.g. ``elbow_flexion``; its name; the only column
+    containing its name) or by ``columns`` {joint: column}; on a one-joint model ``columns``
+    may be a column name. Joints without a column are simulated but not scored; at least one
+    joint must be matched.
+    """
+    from ..model.chain import as_chain
+    from ..model.presets import preset
+
+    chain = as_chain(model) if model is not None else preset("builtin:elbow-curl")
+    joint_names = [j.name for j in chain.joints]
     if spec.startswith("builtin:"):
-        raise ModelError("target", f"{spec!r}; allowed builtin: {BUILTIN_CURL}")
-    time, angle, name = read_angle_history(spec, column, units)
+        name = spec.split(":", 1)[1]
+        if name not in BUILTIN_TARGETS:
+            raise ModelError("target", f"{spec!r}; allowed: "
+                             f"{', '.join('builtin:' + k for k in BUILTIN_TARGETS)}")
+        target = BUILTIN_TARGETS[name]()
+        missing = [j for j in target.joints if j not in joint_names]
+        if missing:
+            raise ModelError("target", f"{spec} moves joint(s) {', '.join(missing)}, which the "
+                             f"model {chain.name!r} does not have (joints: "
+                             f"{', '.join(joint_names)})")
+        return target
+    if isinstance(columns, str):
+        if chain.n_joints != 1:
+            raise ModelError("column", f"{columns!r}: this model has joints "
+                             f"{', '.join(joint_names)}; allowed: JOINT=COLUMN per joint")
+        columns = {joint_names[0]: columns}
+    columns = dict(columns or {})
+    for joint in columns:
+        if joint not in joint_names:
+            raise ModelError("column", f"{joint!r} is not a joint of the model; allowed: "
+                             f"{', '.join(joint_names)}")
+    mapping: dict[str, str] = {}
+
+    def pick(names: list[str]) -> list[str]:
+        for joint in chain.joints:
+            column = columns.get(joint.name) or _auto_column(joint, names,
+                                                             chain.n_joints == 1)
+            if column is not None:
+                mapping[joint.name] = column
+        if not mapping:
+            raise ModelError("target", f"{spec}: no column matches a joint of the model "
+                             f"({', '.join(j.coordinate for j in chain.joints)}); columns: "
+                             f"{', '.join(names)}; allowed: --column JOINT=COLUMN")
+        return list(dict.fromkeys(mapping.values()))
+
+    time, angles = read_angle_table(spec, units, columns=pick)
     if time[-1] - time[0] > 600.0:
         raise ModelError("target", f"{spec}: spans {time[-1] - time[0]:g} s; allowed at most "
                          "600 s")
-    return Target(time, angle, f"{spec} [{name}]")
+    joints = tuple(mapping)
+    described = ", ".join(f"{j}={mapping[j]}" for j in joints)
+    return Target(time, np.array([angles[mapping[j]] for j in joints]), joints,
+                  f"{spec} [{described}]")
