@@ -18,24 +18,32 @@ from torquesim.fitting import (
     min_jerk_curl,
     run_fit,
 )
-from torquesim.fitting.fit import load_checkpoint
-from torquesim.fitting.objective import FAILED_SCORE, sample_motion, score_motion
-from torquesim.fitting.parameters import PARAMETER_NAMES, profiles, vector
+from torquesim.fitting.fit import _Run, load_checkpoint
+from torquesim.fitting.objective import FAILED_SCORE, sample_joint
+from torquesim.fitting.parameters import vector, with_ramps
 
 # A known activation pattern: flexor burst and release, mild extensor co-contraction.
 TRUE_X = np.array([0.05, 0.3, 0.5, 0.3, 0.4, 0.25, 0.1, 0.2, 0.3,
                    0.2, 0.3, 0.15, 0.2, 0.3, 0.1, 0.1, 0.2, 0.1])
-QUICK = SearchSettings(generations=30, population_per_parameter=8, polish_simulations=1000)
+QUICK = SearchSettings(starts=2, iterations=40)
+GLOBAL = SearchSettings(search="global", generations=30, population_per_parameter=8,
+                        polish_simulations=1000)
+
+
+def _elbow_with(x, duration, start_deg):
+    chain = ts.load_model("builtin:elbow-curl")
+    chain = with_ramps(chain, x, [None, 0.1]).replace(duration=duration)
+    joint = chain.joints[0]
+    from dataclasses import replace
+
+    return chain.replace(joints=(replace(joint, initial_angle=math.radians(start_deg)),))
 
 
 @pytest.fixture(scope="module")
 def synthetic_target():
     """1.5 s motion (20° → ~70°) simulated with the reference solver from TRUE_X."""
-    flexor, extensor = profiles(TRUE_X, 0.1)
-    model = ts.default_model().replace(flexor_activation=flexor, extensor_activation=extensor,
-                                       duration=1.5, initial_angle=math.radians(20))
-    ref = ts.simulate(model, "reference", output_step=0.01)
-    return Target(ref.time + 2.0, ref.theta, "synthetic")  # a target need not start at 0
+    ref = ts.simulate(_elbow_with(TRUE_X, 1.5, 20.0), "reference", output_step=0.01)
+    return Target(ref.time + 2.0, ref.q.T, ("elbow",), "synthetic")  # need not start at 0
 
 
 # ---------------------------------------------------------------- targets
@@ -56,8 +64,8 @@ def _write(path, text):
 def test_csv_target_in_degrees_and_radians(tmp_path):
     rows = "\n".join(f"{0.01 * i},{10 + i},{math.radians(10 + i)}" for i in range(6))
     path = _write(tmp_path / "t.csv", "time,elbow_deg,elbow_rad\n" + rows + "\n")
-    deg = load_target(path, column="elbow_deg", units="deg")
-    rad = load_target(path, column="elbow_rad", units="rad")
+    deg = load_target(path, columns="elbow_deg", units="deg")
+    rad = load_target(path, columns="elbow_rad", units="rad")
     assert deg.angle == pytest.approx(rad.angle)
     assert math.degrees(deg.angle[2]) == pytest.approx(12.0)
 
@@ -85,7 +93,7 @@ def test_mot_target_honours_in_degrees(tmp_path, flag, scale):
     ("time,a\n0,1\n0.01,2\n0.02,3\n0.03,4\n0.04,5\n", ".csv", "b", r"no column 'b'"),
     ("time,a\n0,1\n0.02,2\n0.01,3\n0.03,4\n0.04,5\n", ".csv", "a", r"line 4.*does not increase"),
     ("time,a\n0,1\n0.01,2\n", ".csv", "a", r"2 samples; allowed at least 5"),
-    ("time,a,b\n0,1,1\n0.01,2,2\n", ".csv", None, r"several angle columns"),
+    ("time,a,b\n0,1,1\n0.01,2,2\n", ".csv", None, r"no column matches a joint"),
     ("a,b\n0,1\n", ".csv", None, r"no 'time' column"),
     ("time\ta\n0\t1\n", ".mot", "a", r"no 'endheader'"),
     ("inDegrees=yes\nendheader\ntime\ta\n0\t1\n0.1\t2\t3\n", ".mot", "a", r"line 5: 3 cells"),
@@ -101,7 +109,7 @@ def test_mot_target_honours_in_degrees(tmp_path, flag, scale):
 def test_bad_target_files_name_file_line_and_column(tmp_path, text, suffix, column, match):
     path = _write(tmp_path / f"bad{suffix}", text)
     with pytest.raises(ts.ModelError, match=match) as info:
-        load_target(path, column=column)
+        load_target(path, columns=column)
     assert info.value.field == "target" and f"bad{suffix}" in str(info.value)
 
 
@@ -123,17 +131,40 @@ def test_hermite_sampling_is_exact_for_a_cubic_motion():
     states[:, 1] = 1 - 4 * t + 1.5 * t**2
     times = np.array([0.0, 0.037, 0.55, 0.999, 1.0])
     theta, omega = np.empty(5), np.empty(5)
-    sample_motion(states, step, times, theta, omega)
+    sample_joint(states, step, times, 0, 1, theta, omega)
     assert theta == pytest.approx(1 + times - 2 * times**2 + 0.5 * times**3, abs=1e-12)
 
 
-def test_score_is_rms_in_degrees_plus_weighted_terms():
-    target = np.zeros(4)
-    theta = np.radians([1.0, -1.0, 1.0, -1.0])
-    omega = np.radians([2.0, 2.0, 2.0, 2.0])
-    assert score_motion(theta, omega, target, target, 0.0, 0.0) == pytest.approx((1.0, 1.0))
-    assert score_motion(theta, omega, target, target, 0.5, 0.0)[0] == pytest.approx(2.0)
-    assert score_motion(theta, omega, target, target, 0.0, 1.0)[0] == pytest.approx(4.0)
+def test_score_is_rms_in_degrees_plus_weighted_terms(synthetic_target):
+    """‖r‖² = MSE + w_ω²·MSE_ω + w_end²·(end errors²) (objective module docstring)."""
+    plain = FitProblem(synthetic_target, step=2.5e-3)
+    both = FitProblem(synthetic_target, step=2.5e-3, weight_velocity=0.5, weight_end=2.0)
+    r0, _ = plain.residuals(TRUE_X)
+    r1, _ = both.residuals(TRUE_X)
+    run = ts.simulate(plain.model_for(TRUE_X), "imex", plain.step)
+    q, qd = np.empty_like(plain.times), np.empty_like(plain.times)
+    sample_joint(run.states, run.step, plain.times, 0, 1, q, qd)
+    e = np.degrees(q - synthetic_target.angle)
+    ew = np.degrees(qd - plain.target_omega[0])
+    assert r0[0] @ r0[0] == pytest.approx(np.mean(e**2), rel=1e-9)
+    expected = np.mean(e**2) + 0.25 * np.mean(ew**2) + 4.0 * (e[-1] ** 2 + ew[-1] ** 2)
+    assert r1[0] @ r1[0] == pytest.approx(expected, rel=1e-9)
+
+
+def test_effort_term_is_the_mean_squared_activation_above_rest(synthetic_target):
+    """w_a·Σ_u mean (a_u − rest_u)₊²: the flexor (from equilibrium) counts from 0, the
+    extensor from its rest level 0.1, and only above it."""
+    plain = FitProblem(synthetic_target, step=2.5e-3)
+    effort = FitProblem(synthetic_target, step=2.5e-3, weight_effort=10.0)
+    r0, _ = plain.residuals(TRUE_X)
+    r1, _ = effort.residuals(TRUE_X)
+    from torquesim.model.activation import activation
+
+    packed = plain.model_for(TRUE_X).pack(plain.levels).activations
+    a = np.array([[activation(t, packed[u]) for t in plain.times] for u in range(2)])
+    above = np.maximum(a - np.array([[0.0], [0.1]]), 0.0)
+    assert r1[0] @ r1[0] - r0[0] @ r0[0] == pytest.approx(10.0 * np.sum(np.mean(above**2, 1)),
+                                                          rel=1e-9)
 
 
 def test_fit_problem_reproduces_the_simulator(synthetic_target):
@@ -142,17 +173,19 @@ def test_fit_problem_reproduces_the_simulator(synthetic_target):
     score, failed = problem.evaluate(TRUE_X)
     run = ts.simulate(problem.model_for(TRUE_X), "imex", problem.step)
     assert not failed[0]
-    assert score[0] == pytest.approx(problem.errors_deg(run)[0], rel=1e-9)
+    assert score[0] == pytest.approx(problem.errors_deg(run)["elbow"][0], rel=1e-9)
     assert score[0] < 0.05  # IMEX at 2.5 ms vs the reference-made target
 
 
 def test_explicit_rk4_past_its_limit_scores_as_failed():
-    """MODEL.md §5 inside the fit: monolithic RK4 at 5 ms breaks the stability limit on the
-    curl, so every candidate fails instead of fitting a numerical artefact; IMEX does not."""
-    x = vector(ts.default_model().flexor_activation, ts.default_model().extensor_activation)
+    """docs/model.md §5 inside the fit: monolithic RK4 at 5 ms breaks the stability limit on
+    the curl, so every candidate fails instead of fitting a numerical artefact; IMEX does
+    not."""
+    model = ts.load_model("builtin:elbow-curl")
+    x = vector([u.activation for u in model.units])
     bad = FitProblem(min_jerk_curl(), method="monolithic", step=5e-3)
     scores, failed = bad.evaluate(x)
-    assert failed[0] and scores[0] == FAILED_SCORE
+    assert failed[0] and scores[0] == pytest.approx(FAILED_SCORE)
     good = FitProblem(min_jerk_curl(), method="imex", step=5e-3)
     assert not good.evaluate(x)[1][0]
 
@@ -170,55 +203,132 @@ def test_step_is_shrunk_to_divide_the_target_span(synthetic_target):
     assert problem.step <= 4e-3 and problem.n_steps * problem.step == pytest.approx(1.5)
 
 
+def test_jacobian_agrees_with_central_differences_of_the_simulator(synthetic_target):
+    """The least-squares Jacobian (parallel compiled population, step 1e-5) against central
+    differences of ordinary simulate() runs at step 1e-4: 1e-5 relative (Frobenius)."""
+    problem = FitProblem(synthetic_target, step=2.5e-3)
+    x = TRUE_X + 0.01
+    run = _Run(problem, SearchSettings(), None, lambda _m: None, None, lambda: False)
+    run.state = {"initial_x": x}
+    jac = run.jacobian(x.copy())
+
+    def residual(v):
+        result = ts.simulate(problem.model_for(v), "imex", problem.step)
+        q, qd = np.empty_like(problem.times), np.empty_like(problem.times)
+        sample_joint(result.states, result.step, problem.times, 0, 1, q, qd)
+        return np.degrees(q - synthetic_target.angle) / math.sqrt(q.size)
+
+    h = 1e-4
+    reference = np.array([(residual(x + h * e) - residual(x - h * e)) / (2 * h)
+                          for e in np.eye(x.size)]).T
+    assert np.linalg.norm(jac - reference) <= 1e-5 * np.linalg.norm(reference)
+    # all but the ramps that start after the 1.5 s target ends move the motion
+    assert np.count_nonzero(np.linalg.norm(reference, axis=0)) >= 15
+
+
 # ---------------------------------------------------------------- the fit
 
-def test_fit_recovers_a_known_motion(synthetic_target):
+@pytest.mark.parametrize("settings", [QUICK, GLOBAL], ids=["least-squares", "global"])
+def test_fit_recovers_a_known_motion(synthetic_target, settings):
     problem = FitProblem(synthetic_target)
-    outcome = run_fit(problem, QUICK)
-    rms, _ = problem.reference_errors_deg(outcome.x)
+    outcome = run_fit(problem, settings)
+    reference = ts.simulate(problem.model_for(outcome.x), "reference", output_step=0.005)
+    rms, _ = problem.errors_deg(reference)["elbow"]
     assert rms <= 0.5
     assert outcome.score < outcome.initial_score
-    assert outcome.simulations == problem.simulations > 1000
+    assert outcome.simulations == problem.simulations > 500
+
+
+@pytest.fixture(scope="module")
+def arm_target():
+    """1.5 s of the arm raise (shoulder and elbow) made by its own preset, reference solver."""
+    model = ts.load_model("builtin:arm-raise").replace(duration=1.5)
+    ref = ts.simulate(model, "reference", output_step=0.01)
+    return model, Target(ref.time, ref.q.T, ("shoulder", "elbow"), "arm preset")
+
+
+def test_fit_recovers_a_two_joint_motion_per_joint(arm_target):
+    """Recovery on a 2-joint preset: ≤ 0.5° RMS per joint with the reference solver."""
+    model, target = arm_target
+    problem = FitProblem(target, base_model=model)
+    assert problem.space.size == 36
+    outcome = run_fit(problem, SearchSettings(starts=2, iterations=80))
+    reference = ts.simulate(problem.model_for(outcome.x), "reference", output_step=0.005)
+    errors = problem.errors_deg(reference)
+    assert errors["shoulder"][0] <= 0.5 and errors["elbow"][0] <= 0.5, errors
+
+
+def test_unscored_joints_are_simulated_not_scored(arm_target):
+    model, target = arm_target
+    shoulder_only = Target(target.time, target.angles[:1], ("shoulder",), "shoulder")
+    problem = FitProblem(shoulder_only, base_model=model)
+    assert list(problem.scored) == [0] and problem.residual_size == target.time.size
+    weighted = FitProblem(target, base_model=model, joint_weights={"elbow": 3.0})
+    assert weighted.weights == pytest.approx([0.25, 0.75])
+    with pytest.raises(ts.ModelError, match="not a scored joint"):
+        FitProblem(shoulder_only, base_model=model, joint_weights={"elbow": 1.0})
 
 
 def test_fit_is_reproducible_with_the_same_seed(synthetic_target):
-    small = SearchSettings(generations=5, population_per_parameter=4, polish_simulations=50)
-    a = run_fit(FitProblem(synthetic_target), small)
-    b = run_fit(FitProblem(synthetic_target), small)
-    assert np.array_equal(a.x, b.x) and a.score == b.score
+    for small in (SearchSettings(starts=3, iterations=10),
+                  SearchSettings(search="global", generations=5, population_per_parameter=4,
+                                 polish_simulations=50)):
+        a = run_fit(FitProblem(synthetic_target), small)
+        b = run_fit(FitProblem(synthetic_target), small)
+        assert np.array_equal(a.x, b.x) and a.score == b.score
 
 
 def test_frozen_parameters_stay_frozen(synthetic_target):
-    frozen = {"extensor.ramp1.level": 0.15, "flexor.ramp2.duration": 0.4}
+    frozen = {"extensor.ramp1.level": 0.15, "elbow.flexor.ramp2.duration": 0.4}
     space = ParameterSpace(frozen=frozen)
-    outcome = run_fit(FitProblem(synthetic_target, space),
-                      SearchSettings(generations=8, population_per_parameter=4,
-                                     polish_simulations=200))
-    for name, value in frozen.items():
-        assert outcome.x[PARAMETER_NAMES.index(name)] == value
-    assert np.all(outcome.x >= space.lower) and np.all(outcome.x <= space.upper)
+    for settings in (SearchSettings(starts=2, iterations=15),
+                     SearchSettings(search="global", generations=8, population_per_parameter=4,
+                                    polish_simulations=200)):
+        outcome = run_fit(FitProblem(synthetic_target, space), settings)
+        assert outcome.x[space.index("elbow_extensor.ramp1.level")] == 0.15
+        assert outcome.x[space.index("elbow_flexor.ramp2.duration")] == 0.4
+        assert np.all(outcome.x >= space.lower) and np.all(outcome.x <= space.upper)
 
 
-def test_resume_after_interruption_is_at_least_as_good(synthetic_target, tmp_path):
-    checkpoint = tmp_path / "ck.npz"
+def _stop_after(n):
     calls = []
 
-    def stop_after_five():
+    def stop():
         calls.append(1)
-        return len(calls) >= 5
+        return len(calls) >= n
 
+    return stop
+
+
+def test_least_squares_resumed_gives_the_uninterrupted_result(synthetic_target, tmp_path):
+    settings = SearchSettings(starts=3, iterations=20)
+    whole = run_fit(FitProblem(synthetic_target), settings)
+    checkpoint = tmp_path / "ck.npz"
+    first = run_fit(FitProblem(synthetic_target), settings, checkpoint=checkpoint,
+                    should_stop=_stop_after(20))
+    assert first.interrupted and first.generations_done < 3
+    state = load_checkpoint(checkpoint, FitProblem(synthetic_target), settings)
+    resumed = run_fit(FitProblem(synthetic_target), settings, checkpoint=checkpoint,
+                      resume=state)
+    assert not resumed.interrupted and resumed.generations_done == 3
+    assert resumed.x == pytest.approx(whole.x, rel=1e-12, abs=1e-15)
+    assert resumed.simulations > first.simulations
+
+
+def test_global_resume_after_interruption_is_at_least_as_good(synthetic_target, tmp_path):
+    checkpoint = tmp_path / "ck.npz"
     problem = FitProblem(synthetic_target)
-    first = run_fit(problem, QUICK, checkpoint=checkpoint, should_stop=stop_after_five)
+    first = run_fit(problem, GLOBAL, checkpoint=checkpoint, should_stop=_stop_after(5))
     assert first.interrupted and first.generations_done == 5
-    state = load_checkpoint(checkpoint, FitProblem(synthetic_target), QUICK)
+    state = load_checkpoint(checkpoint, FitProblem(synthetic_target), GLOBAL)
     assert float(state["best_score"]) == first.score
-    resumed = run_fit(FitProblem(synthetic_target), QUICK, checkpoint=checkpoint, resume=state)
-    assert not resumed.interrupted and resumed.generations_done == QUICK.generations
+    resumed = run_fit(FitProblem(synthetic_target), GLOBAL, checkpoint=checkpoint, resume=state)
+    assert not resumed.interrupted and resumed.generations_done == GLOBAL.generations
     assert resumed.score <= first.score
     assert resumed.simulations > first.simulations
 
 
-TINY = SearchSettings(generations=1, polish_simulations=0, population_per_parameter=2)
+TINY = SearchSettings(starts=1, iterations=2)
 
 
 def test_checkpoint_of_another_fit_is_refused(synthetic_target, tmp_path):
@@ -226,11 +336,15 @@ def test_checkpoint_of_another_fit_is_refused(synthetic_target, tmp_path):
     run_fit(FitProblem(synthetic_target), TINY, checkpoint=checkpoint)
     with pytest.raises(ts.ModelError, match="another fit"):
         load_checkpoint(checkpoint, FitProblem(synthetic_target, step=2e-3), TINY)
-    other_seed = SearchSettings(seed=2, generations=1, polish_simulations=0,
-                                population_per_parameter=2)
+    with pytest.raises(ts.ModelError, match="another fit"):
+        load_checkpoint(checkpoint, FitProblem(synthetic_target, weight_effort=1.0), TINY)
     with pytest.raises(ts.ModelError, match="seed = 1, not 2"):
-        load_checkpoint(checkpoint, FitProblem(synthetic_target), other_seed)
-    longer = SearchSettings(generations=5, polish_simulations=0, population_per_parameter=2)
+        load_checkpoint(checkpoint, FitProblem(synthetic_target),
+                        SearchSettings(seed=2, starts=1, iterations=2))
+    with pytest.raises(ts.ModelError, match="search"):
+        load_checkpoint(checkpoint, FitProblem(synthetic_target),
+                        SearchSettings(search="global"))
+    longer = SearchSettings(starts=1, iterations=50)
     assert load_checkpoint(checkpoint, FitProblem(synthetic_target), longer)["seed"] == 1
 
 
@@ -258,7 +372,8 @@ def test_damaged_or_foreign_checkpoints_are_one_line_errors(synthetic_target, tm
 @pytest.mark.parametrize("space_args, field", [
     (dict(frozen={"flexor.ramp9.level": 0.1}), "freeze"),
     (dict(frozen={"flexor.ramp1.level": 1.5}), "freeze.flexor.ramp1.level"),
-    (dict(extensor_rest=-0.1), "extensor_rest"),
+    (dict(frozen={"shoulder.flexor.ramp1.level": 0.5}), "freeze"),
+    (dict(rest_level=-0.1), "rest_level"),
 ])
 def test_bad_parameter_space(space_args, field):
     with pytest.raises(ts.ModelError) as info:
@@ -266,10 +381,18 @@ def test_bad_parameter_space(space_args, field):
     assert info.value.field == field
 
 
+def test_parameter_names_and_aliases_on_a_chain():
+    space = ParameterSpace.for_model(ts.load_model("builtin:arm-raise"))
+    assert space.names[0] == "shoulder_flexor.ramp1.delay" and space.size == 36
+    assert space.resolve("elbow.extensor.ramp3.level") == "elbow_extensor.ramp3.level"
+    with pytest.raises(ts.ModelError, match="shoulder_flexor"):
+        space.resolve("flexor.ramp1.delay")  # ambiguous on two joints: not an alias
+
+
 def test_bad_bounds_name_the_parameter():
     with pytest.raises(ts.ModelError, match="lower 0.5 > upper 0.2") as info:
         ParameterSpace().with_bounds("flexor.ramp1.delay", 0.5, 0.2)
-    assert info.value.field == "bounds.flexor.ramp1.delay"
+    assert info.value.field == "bounds.elbow_flexor.ramp1.delay"
 
 
 # ---------------------------------------------------------------- CLI
@@ -280,26 +403,77 @@ def test_fit_cli_writes_loadable_outputs_and_resumes(tmp_path, capsys):
     angle = 20 + 30 * (10 * t**3 - 15 * t**4 + 6 * t**5)
     target.write_text("time,elbow\n" + "".join(f"{a},{b}\n" for a, b in zip(t, angle, strict=True)))
     out = tmp_path / "fit"
-    args = ["fit", "--target", str(target), "--out", str(out), "--generations", "4",
-            "--population", "3", "--polish", "30", "--freeze", "extensor.ramp3.level=0.1",
+    args = ["fit", "--target", str(target), "--out", str(out), "--starts", "2",
+            "--iterations", "8", "--freeze", "extensor.ramp3.level=0.1",
             "--bound", "flexor.ramp1.delay=0,0.3"]
     assert main(args) == 0
     printed = capsys.readouterr().out
-    assert "reference     RMS" in printed and "simulations" in printed
+    assert "reference RMS" in printed and "mean elbow_flexor" in printed
     summary = json.loads((out / "fit_summary.json").read_text())
-    assert summary["parameters"]["extensor.ramp3.level"] == 0.1
-    assert 0 <= summary["parameters"]["flexor.ramp1.delay"] <= 0.3
-    assert summary["simulations"] > 0 and summary["reference_rms_error_deg"] < 20
+    assert summary["parameters"]["elbow_extensor.ramp3.level"] == 0.1
+    assert 0 <= summary["parameters"]["elbow_flexor.ramp1.delay"] <= 0.3
+    assert summary["simulations"] > 0 and summary["joints"]["elbow"]["reference_rms_error_deg"] < 20
+    assert 0.0 <= summary["mean_activation"]["elbow_extensor"] <= 1.0
     fitted = ts.load_model(out / "fitted_model.toml")
     assert fitted.duration == pytest.approx(1.0)
     assert math.degrees(fitted.joints[0].initial_angle) == pytest.approx(20.0)
     table = ts.read_table(out / "fit_motion.csv")
-    assert list(table)[:4] == ["time", "target_deg", "fitted_deg", "reference_deg"]
+    assert list(table)[:4] == ["time", "elbow_target_deg", "elbow_fitted_deg",
+                               "elbow_reference_deg"]
+    storage = ts.read_table(out / "fit_motion.sto")  # OpenSim storage, radians
+    assert storage["elbow_target"] == pytest.approx(np.radians(table["elbow_target_deg"]))
     assert (out / "fit.png").stat().st_size > 0
-    assert main(args[:-6] + ["--generations", "6", "--resume"]) == 2  # settings differ
+    assert main(args[:-4] + ["--resume"]) == 2  # settings differ (no freeze, no bound)
     assert "another fit" in capsys.readouterr().err
-    assert main([*args[:6], "6", *args[7:], "--resume"]) == 0
-    assert json.loads((out / "fit_summary.json").read_text())["generations"] == 6
+    assert main([*args[:6], "3", *args[7:], "--resume"]) == 0
+    assert json.loads((out / "fit_summary.json").read_text())["generations"] == 3
+
+
+def test_fit_cli_on_a_two_joint_mot_maps_columns_by_name(tmp_path, capsys):
+    """An OpenSim IK file: columns named after the coordinates are matched automatically;
+    --column maps one by hand; a column that is not there is one line, exit 2."""
+    t = np.arange(0, 0.8001, 0.01)
+    shoulder = 5 + 20 * (10 * (t / 0.8) ** 3 - 15 * (t / 0.8) ** 4 + 6 * (t / 0.8) ** 5)
+    elbow = 10 + 15 * (10 * (t / 0.8) ** 3 - 15 * (t / 0.8) ** 4 + 6 * (t / 0.8) ** 5)
+    rows = "".join(f"{a}\t{b}\t{c}\t0.0\n" for a, b, c in zip(t, shoulder, elbow, strict=True))
+    path = tmp_path / "ik.mot"
+    path.write_text(f"ik\nversion=1\nnRows={t.size}\nnColumns=4\ninDegrees=yes\nendheader\n"
+                    f"time\tshoulder_flexion\tr_elbow_flex\tpelvis_tilt\n{rows}")
+    out = tmp_path / "fit"
+    base = ["fit", "--model", "builtin:arm-raise", "--target", str(path), "--starts", "1",
+            "--iterations", "3", "--quiet"]
+    assert main([*base, "--out", str(out)]) == 0
+    summary = json.loads((out / "fit_summary.json").read_text())
+    assert summary["target"]["joints"] == ["shoulder", "elbow"]
+    assert "elbow=r_elbow_flex" in summary["target"]["source"]
+    capsys.readouterr()
+    assert main([*base, "--out", str(tmp_path / "f2"), "--column", "elbow=pelvis_tilt"]) == 0
+    summary = json.loads((tmp_path / "f2" / "fit_summary.json").read_text())
+    assert "elbow=pelvis_tilt" in summary["target"]["source"]
+    assert main([*base, "--out", str(tmp_path / "f3"), "--column", "elbow=wrist"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "no column 'wrist'" in err
+    assert main([*base, "--out", str(tmp_path / "f4"), "--column", "knee=x"]) == 2
+    assert "not a joint of the model" in capsys.readouterr().err
+
+
+def test_target_columns_are_matched_to_joints(tmp_path):
+    arm = ts.load_model("builtin:arm-raise")
+    rows = "".join(f"{0.01 * i},{10 + i},{20 + i},{i}\n" for i in range(6))
+    path = tmp_path / "t.csv"
+    path.write_text("time,Shoulder,elbow_flexion,other\n" + rows)
+    target = load_target(str(path), arm)
+    assert target.joints == ("shoulder", "elbow")
+    assert np.degrees(target.angles[:, 1]) == pytest.approx([11, 21])
+    only = tmp_path / "o.csv"
+    only.write_text("time,hip\n" + "".join(f"{0.01 * i},{i}\n" for i in range(6)))
+    with pytest.raises(ts.ModelError, match="no column matches a joint"):
+        load_target(str(only), arm)
+    with pytest.raises(ts.ModelError, match="JOINT=COLUMN"):
+        load_target(str(path), arm, "other")
+    assert load_target("builtin:arm-raise", arm).joints == ("shoulder", "elbow")
+    with pytest.raises(ts.ModelError, match="does not have"):
+        load_target("builtin:knee-extension", arm)
 
 
 @pytest.mark.parametrize("extra, field", [
@@ -321,8 +495,8 @@ def _tiny_fit_args(tmp_path):
     angle = 20 + 20 * (10 * t**3 - 15 * t**4 + 6 * t**5)
     target.write_text("time,elbow\n" + "".join(f"{a},{b}\n" for a, b in zip(t, angle,
                                                                           strict=True)))
-    return ["fit", "--target", str(target), "--out", str(tmp_path / "fit"), "--generations",
-            "1", "--population", "2", "--polish", "0"]
+    return ["fit", "--target", str(target), "--out", str(tmp_path / "fit"), "--starts", "1",
+            "--iterations", "2"]
 
 
 def test_a_new_fit_into_a_fit_directory_needs_resume_or_overwrite(tmp_path, capsys):
@@ -373,9 +547,9 @@ def test_sigterm_while_the_outputs_are_written_leaves_one_consistent_set(tmp_pat
     summary = json.loads((out / "fit_summary.json").read_text())
     fitted = ts.load_model(out / "fitted_model.toml")
     flexor = fitted.units[0].activation.ramps
-    assert flexor[0].delay == pytest.approx(summary["parameters"]["flexor.ramp1.delay"],
-                                            rel=1e-12)
-    for name in ("fit_motion.csv", "fit.png", "fit_checkpoint.npz"):
+    assert flexor[0].delay == pytest.approx(
+        summary["parameters"]["elbow_flexor.ramp1.delay"], rel=1e-12)
+    for name in ("fit_motion.csv", "fit_motion.sto", "fit.png", "fit_checkpoint.npz"):
         assert (out / name).stat().st_size > 0
     assert signal.getsignal(signal.SIGTERM) is not None
 

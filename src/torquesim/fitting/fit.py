@@ -176,7 +176,7 @@ def load_checkpoint(path, problem: FitProblem, settings: SearchSettings) -> dict
         raise ModelError("resume", f"checkpoint {name} belongs to another fit (target, "
                          "model, bounds, method, step or weights differ, or an older "
                          "torquesim made it); allowed: the same settings")
-    for key in ("search", "seed", "population_per_parameter", "starts"):
+    for key in ("search", "seed", "population_per_parameter"):
         if state[key] != getattr(settings, key):
             raise ModelError("resume", f"checkpoint {name} was made with {key} = "
                              f"{state[key]}, not {getattr(settings, key)}; allowed: the same "
