@@ -107,11 +107,16 @@ def test_presets_simulate_with_columns_named_after_joints_and_units(tmp_path, ca
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_fit_refuses_a_chain_with_a_clear_message(tmp_path, capsys):
-    code, _, err = run(["fit", "--model", "builtin:arm-raise", "--out", str(tmp_path / "f")],
-                       capsys)
-    assert code == 2 and "one-joint elbow" in err and err.count("\n") == 1
+def test_fit_of_a_model_file_needs_a_target(tmp_path, capsys):
+    """A preset brings its own built-in motion; a model file does not."""
+    model = tmp_path / "arm.toml"
+    assert run(["model", "builtin:arm-raise", "--out", str(model)], capsys)[0] == 0
+    code, _, err = run(["fit", "--model", str(model), "--out", str(tmp_path / "f")], capsys)
+    assert code == 2 and "--target" in err and err.count("\n") == 1
     assert not (tmp_path / "f").exists()
+    code, _, err = run(["fit", "--model", str(model), "--target", "builtin:knee-extension",
+                        "--out", str(tmp_path / "f")], capsys)
+    assert code == 2 and "does not have" in err and not (tmp_path / "f").exists()
 
 
 def test_unknown_preset_lists_the_allowed_ones(capsys):

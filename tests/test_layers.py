@@ -14,8 +14,9 @@ FORBIDDEN = {
     "io": {"solvers", "study", "fitting", "cli", "plots"},
     "study": {"cli", "fitting"},
     "fitting": {"cli", "study"},
+    "batch": {"cli"},
 }
-PLOTTING = {"plots.py", "study/report.py"}
+PLOTTING = {"plots.py", "study/report.py", "batch/report.py"}
 
 
 def _imports(path: Path):

@@ -507,6 +507,128 @@ def _take_lock(out: Path) -> Path:
     raise ModelError("--out", f"cannot take the lock {str(lock)!r}")
 
 
+@cli.group()
+def batch():
+    """Many runs on Dask distributed: batch fits and parameter sweeps.
+
+    Default engine: a local cluster with one worker process per core (one thread each);
+    --workers N to choose, --scheduler tcp://HOST:PORT for an existing cluster (its workers
+    need torquesim installed and, for fits, the same file system).
+    """
+
+
+def _engine_options(fn):
+    fn = click.option("--workers", type=click.IntRange(1, 1024), default=None,
+                      help="Local worker processes (default: one per core).")(fn)
+    fn = click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                      help="Use a running Dask scheduler instead of a local cluster.")(fn)
+    return click.option("--quiet", is_flag=True, help="No progress bar or lines.")(fn)
+
+
+def _batch_progress(quiet: bool, label: str):
+    reporter = Progress(quiet)
+    return reporter, (lambda done, total: (reporter.step(done, total, label),
+                                           None if reporter.bars or quiet else
+                                           reporter.say(f"{label} {done}/{total}")))
+
+
+@batch.command("fit")
+@click.argument("targets", nargs=-1)
+@click.option("--manifest", type=click.Path(dir_okay=False),
+              help="CSV with columns target,model,column (model and column optional) "
+                   "instead of, or beside, TARGETS.")
+@click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
+              help="Model for every target without one in the manifest.")
+@click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
+              default="imex", show_default=True)
+@click.option("--step", type=TIME, default="5ms", show_default=True)
+@click.option("--search", type=click.Choice(["least-squares", "global"]),
+              default="least-squares", show_default=True)
+@click.option("--starts", type=click.IntRange(1, 100), default=4, show_default=True)
+@click.option("--iterations", type=click.IntRange(1, 100_000), default=200, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True)
+@click.option("--weight-effort", type=click.FloatRange(0.0, 1e6), default=0.0,
+              show_default=True)
+@click.option("--units", type=click.Choice(["deg", "rad"]),
+              help="Units of CSV targets (default deg; .mot/.sto: inDegrees).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="batch-out",
+              show_default=True, help="One folder per target, batch.csv and batch.html.")
+@_engine_options
+def batch_fit(targets, manifest, model_path, method, step, search, starts, iterations, seed,
+              weight_effort, units, out_dir, workers, scheduler, quiet):
+    """Fit every TARGET (files, globs or builtin:NAME), each into OUT/NAME/.
+
+    Finished fits are skipped when the command is run again (same target, model and
+    settings); unfinished ones resume from their checkpoints. Exit code 1 if any target
+    failed (its row in batch.csv says why), 130 on Ctrl-C with what finished on disk.
+    """
+    from .batch import fit_many
+
+    reporter, progress = _batch_progress(quiet, "fits")
+    try:
+        table = fit_many(targets, out=out_dir, model=model_path, manifest=manifest,
+                         method=method, step=step, search=search, seed=seed, starts=starts,
+                         iterations=iterations, weight_effort=weight_effort, units=units,
+                         workers=workers, scheduler=scheduler, progress=progress)
+    except KeyboardInterrupt:
+        reporter.close()
+        click.echo(f"interrupted: finished fits are in {out_dir}/batch.csv; run the same "
+                   "command again to continue", err=True)
+        return 130
+    reporter.close()
+    failed = table[table["status"] == "failed"]
+    click.echo(f"{len(table) - len(failed)} of {len(table)} fits done; wrote "
+               f"{out_dir}/batch.csv, batch.html")
+    for _, row in failed.iterrows():
+        click.echo(f"failed: {row['name']}: {row['error']}", err=True)
+    return 1 if len(failed) else 0
+
+
+@batch.command("sweep")
+@click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True)
+@click.option("--vary", multiple=True, required=True, metavar="PATH=KIND(...)",
+              help="A model field and its distribution (repeatable): uniform(LOW,HIGH), "
+                   "normal(MEAN,SD), lognormal(MEDIAN,SIGMA) or grid(LOW,HIGH,N); PATH as in "
+                   "the model file, e.g. elbow_flexor.se_stiffness (or flexor.se_stiffness "
+                   "on the elbow), forearm_hand.dumbbell.mass, elbow.initial_angle.")
+@click.option("--samples", type=click.IntRange(1, 10_000_000), default=1000,
+              show_default=True, help="Monte Carlo samples (crossed with any grids).")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True)
+@click.option("--sobol", is_flag=True, help="Scrambled Sobol' points instead of random.")
+@click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
+              default="imex", show_default=True)
+@click.option("--step", type=TIME, default="5ms", show_default=True)
+@click.option("--chunk", type=click.IntRange(1, 1_000_000), default=1000, show_default=True,
+              help="Samples per Dask task.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="sweep-out",
+              show_default=True)
+@_engine_options
+def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out_dir,
+                workers, scheduler, quiet):
+    """Simulate the model over parameter distributions; write sweep.csv (one row per
+    sample), percentile bands (sweep.png, sweep_percentiles.csv), rank correlations and
+    sweep.html. Finished chunks are kept in OUT/chunks and skipped on a rerun."""
+    from .batch import sweep
+
+    reporter, progress = _batch_progress(quiet, "chunks")
+    try:
+        table, _ = sweep(model_path, vary, samples=samples, seed=seed, sobol=sobol,
+                         method=method, step=step, out=out_dir, chunk=chunk, workers=workers,
+                         scheduler=scheduler, progress=progress)
+    except KeyboardInterrupt:
+        reporter.close()
+        click.echo(f"interrupted: finished chunks are in {out_dir}/chunks; run the same "
+                   "command again to continue", err=True)
+        return 130
+    reporter.close()
+    failed = int((table["guard"] == "failed").sum())
+    click.echo(f"{len(table)} samples ({failed} failed, "
+               f"{int((table['guard'] == 'exceeded').sum())} beyond the stability limit); "
+               f"wrote {out_dir}/sweep.csv, sweep.png, sweep_percentiles.csv, "
+               "rank_correlations.csv, sweep.html")
+    return 1 if failed else 0
+
+
 def main(argv=None) -> int:
     """Entry point: one-line errors, exit code 2 for bad input, 1 for a failed run."""
     try:

@@ -117,7 +117,7 @@ class ElbowModel:
         if problem:
             raise ModelError("model", f"{purpose} works on the one-joint elbow model only and "
                              f"{chain.name!r} does not fit: {problem}; allowed: a model "
-                             "like builtin:elbow-curl (fitting chains is not available yet)")
+                             "like builtin:elbow-curl")
         seg, joint = chain.segments[0], chain.joints[0]
         flexor = next(u for u in units if u.direction == 1)
         extensor = next(u for u in units if u.direction == -1)

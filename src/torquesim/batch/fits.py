@@ -1,0 +1,199 @@
+"""Many fits at once: one Dask task per target, each writing the usual fit outputs into its
+own folder, the batch table updated as each finishes.
+
+Rerunning the same command skips every target whose folder holds a finished fit made from
+the same target, model and settings (a fingerprint of the three, ``batch_fingerprint.txt``),
+and resumes unfinished ones from their checkpoints. The folders must be on a file system the
+workers share with the client (always true for the default local cluster).
+"""
+
+from __future__ import annotations
+
+import csv
+import glob
+import hashlib
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import ModelError, SimulationError
+from .report import write_batch_page, write_batch_table
+
+FINGERPRINT_FILE = "batch_fingerprint.txt"
+
+
+@dataclass(frozen=True)
+class FitJob:
+    """One target of a batch: its file (or ``builtin:NAME``), model and column mapping."""
+
+    name: str
+    target: str
+    model: str = "builtin:elbow-curl"
+    column: str | None = None
+
+
+def expand_targets(targets, model: str = "builtin:elbow-curl", manifest=None) -> list[FitJob]:
+    """Jobs from target files and globs (each with ``model``), or from a manifest CSV with
+    columns ``target,model,column`` (model and column optional; paths relative to the
+    manifest). Folder names are the target file stems, made unique."""
+    specs: list[tuple[str, str, str | None]] = []
+    if manifest is not None:
+        path = Path(manifest)
+        try:
+            with path.open(newline="", encoding="utf-8-sig") as fh:
+                rows = list(csv.DictReader(fh))
+        except OSError as exc:
+            raise ModelError("--manifest", f"cannot read {str(path)!r}: {exc.strerror}") \
+                from None
+        if not rows or "target" not in rows[0]:
+            raise ModelError("--manifest", f"{path.name}: needs a header with 'target' (and "
+                             "optionally 'model', 'column')")
+        def resolve(spec: str) -> str:
+            """Paths in the manifest are relative to it."""
+            return (spec if spec.startswith("builtin:") or Path(spec).is_absolute()
+                    else str(path.parent / spec))
+
+        for i, row in enumerate(rows, 2):
+            target = (row.get("target") or "").strip()
+            if not target:
+                raise ModelError("--manifest", f"{path.name} line {i}: empty target")
+            own = (row.get("model") or "").strip()
+            specs.append((resolve(target), resolve(own) if own else model,
+                          (row.get("column") or "").strip() or None))
+    for spec in targets:
+        matches = [spec] if spec.startswith("builtin:") else sorted(glob.glob(spec))
+        if not matches:
+            raise ModelError("TARGET", f"{spec!r} matches no file")
+        specs += [(m, model, None) for m in matches]
+    if not specs:
+        raise ModelError("TARGET", "no targets; allowed: files, globs or --manifest")
+    jobs, used = [], set()
+    for target, job_model, column in specs:
+        stem = target.replace(":", "-") if target.startswith("builtin:") else Path(target).stem
+        name, k = stem, 2
+        while name in used:
+            name, k = f"{stem}_{k}", k + 1
+        used.add(name)
+        jobs.append(FitJob(name, target, job_model, column))
+    return jobs
+
+
+def job_fingerprint(job: FitJob, settings: dict) -> str:
+    """Hash of the target's content, the model file's content and the fit settings."""
+    h = hashlib.sha256()
+    for spec in (job.target, job.model):
+        h.update(spec.encode() if spec.startswith("builtin:") else Path(spec).read_bytes())
+    h.update(json.dumps([job.column, settings], sort_keys=True).encode())
+    return h.hexdigest()[:16]
+
+
+def run_job(job: FitJob, settings: dict, folder: str, key: str) -> dict:
+    """Fit one target into ``folder`` (a Dask task): resume from its checkpoint when it
+    holds one of this fit; a bad file or a failed fit is its own row's one-line error."""
+    from ..fitting import FitProblem, ParameterSpace, SearchSettings, load_target, run_fit
+    from ..fitting.fit import load_checkpoint
+    from ..fitting.outputs import CHECKPOINT_FILE, summarise, write_outputs
+    from ..io.model_file import load_model
+    from .engine import single_threaded, worker_name
+
+    single_threaded()
+    row = {"name": job.name, "target": job.target, "model": job.model,
+           "worker": worker_name()}
+    start = time.perf_counter()
+    out = Path(folder)
+    try:
+        model = load_model(job.model)
+        target = load_target(job.target, model, job.column, settings.get("units"))
+        problem = FitProblem(target, ParameterSpace.for_model(model), model,
+                             settings["method"], settings["step"],
+                             weight_effort=settings["weight_effort"])
+        search = SearchSettings(search=settings["search"], seed=settings["seed"],
+                                starts=settings["starts"], iterations=settings["iterations"])
+        out.mkdir(parents=True, exist_ok=True)
+        checkpoint = out / CHECKPOINT_FILE
+        state = None
+        if checkpoint.is_file():
+            try:
+                state = load_checkpoint(checkpoint, problem, search)
+            except ModelError:
+                state = None  # another fit's checkpoint: start again
+        outcome = run_fit(problem, search, checkpoint=checkpoint, resume=state)
+        summary = summarise(problem, outcome, search)
+        write_outputs(out, problem, outcome, summary)
+        (out / FINGERPRINT_FILE).write_text(key + "\n")
+        row.update(status="done", rms_deg=summary["rms_error_deg"],
+                   max_deg=summary["max_error_deg"],
+                   reference_rms_deg=summary["reference_rms_error_deg"],
+                   simulations=summary["simulations"], error="")
+    except (ModelError, SimulationError, OSError) as exc:
+        row.update(status="failed", error=str(exc).splitlines()[0] if str(exc) else
+                   type(exc).__name__)
+    row["wall_time_s"] = time.perf_counter() - start
+    return row
+
+
+def _finished_row(job: FitJob, folder: Path, key: str) -> dict | None:
+    """The row of a fit finished earlier with the same fingerprint, else None."""
+    try:
+        if (folder / FINGERPRINT_FILE).read_text().strip() != key:
+            return None
+        summary = json.loads((folder / "fit_summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return {"name": job.name, "target": job.target, "model": job.model,
+            "status": "done earlier", "rms_deg": summary["rms_error_deg"],
+            "max_deg": summary["max_error_deg"],
+            "reference_rms_deg": summary["reference_rms_error_deg"],
+            "simulations": summary["simulations"], "wall_time_s": summary["wall_time_s"],
+            "worker": "", "error": ""}
+
+
+def fit_many(targets=(), *, out, model: str = "builtin:elbow-curl", manifest=None,
+             method: str = "imex", step: float = 5e-3, search: str = "least-squares",
+             seed: int = 1, starts: int = 4, iterations: int = 200,
+             weight_effort: float = 0.0, units: str | None = None, client=None,
+             workers: int | None = None, scheduler: str | None = None, progress=None):
+    """Fit every target (files, globs, ``builtin:`` names or a ``manifest`` CSV) on Dask,
+    each into ``out/NAME/``; write ``out/batch.csv`` as fits finish and ``out/batch.html``
+    at the end. Returns the table as a pandas DataFrame (one row per target: status, errors,
+    simulations, wall time, worker, the error of a failed row)."""
+    import pandas as pd
+
+    from .engine import connect, run_tasks
+
+    out = Path(out)
+    jobs = expand_targets(targets, model, manifest)
+    settings = {"method": method, "step": step, "search": search, "seed": seed,
+                "starts": starts, "iterations": iterations, "weight_effort": weight_effort,
+                "units": units}
+    out.mkdir(parents=True, exist_ok=True)
+    rows: list[dict | None] = [None] * len(jobs)
+    keys = []
+    for i, job in enumerate(jobs):
+        try:
+            keys.append(job_fingerprint(job, settings))
+        except OSError as exc:
+            keys.append("")
+            rows[i] = {"name": job.name, "target": job.target, "model": job.model,
+                       "status": "failed", "error": f"cannot read: {exc.strerror}"}
+            continue
+        rows[i] = _finished_row(job, out / job.name, keys[i])
+    todo = [i for i, r in enumerate(rows) if r is None]
+
+    def record(k, row):
+        rows[todo[k]] = row
+        write_batch_table(out, [r for r in rows if r is not None])
+
+    write_batch_table(out, [r for r in rows if r is not None])
+    try:
+        if todo:
+            with connect(client, workers=workers, scheduler=scheduler) as dask_client:
+                run_tasks(dask_client, [(run_job, (jobs[i], settings, str(out / jobs[i].name),
+                                                   keys[i])) for i in todo], record,
+                          progress=progress)
+    finally:
+        finished = [r for r in rows if r is not None]
+        write_batch_table(out, finished)
+        write_batch_page(out, finished, settings)
+    return pd.DataFrame([r for r in rows if r is not None])

@@ -1,0 +1,170 @@
+"""What batch work writes: tables (CSV), percentile bands, rank correlations, the batch fit
+page with a small-multiples figure."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..io.atomic import write_atomic, write_text_atomic
+from ..study.page import image, page, settings_table, table
+
+PERCENTILES = (5, 25, 50, 75, 95)
+
+
+def rank_correlations(frame, parameters, outcomes) -> dict[str, dict[str, float]]:
+    """Spearman rank correlation of every parameter with every outcome over the samples
+    that finished (parameter → outcome → ρ; NaN where an outcome does not vary)."""
+    from scipy.stats import spearmanr
+
+    ok = frame["guard"] != "failed"
+    out = {}
+    for p in parameters:
+        out[p] = {}
+        for o in outcomes:
+            x, y = frame.loc[ok, p].to_numpy(), frame.loc[ok, o].to_numpy()
+            if x.size < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
+                out[p][o] = math.nan
+            else:
+                out[p][o] = float(spearmanr(x, y).statistic)
+    return out
+
+
+def plot_bands(chain, histories: np.ndarray):
+    """Per joint: the median angle and the 25–75 % and 5–95 % bands over the samples."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    n = chain.n_joints
+    t = np.linspace(0.0, chain.duration, histories.shape[2])
+    fig, axes = plt.subplots(n, 1, figsize=(8, 2.8 * n + 0.6), squeeze=False, sharex=True,
+                             constrained_layout=True)
+    finished = histories[~np.isnan(histories[:, 0, 0])]
+    for j, joint in enumerate(chain.joints):
+        ax = axes[j, 0]
+        if finished.shape[0]:
+            p5, p25, p50, p75, p95 = np.percentile(finished[:, j], PERCENTILES, axis=0)
+            ax.fill_between(t, p5, p95, color="tab:blue", alpha=0.2, label="5–95 %")
+            ax.fill_between(t, p25, p75, color="tab:blue", alpha=0.4, label="25–75 %")
+            ax.plot(t, p50, color="tab:blue", label="median")
+        ax.set_ylabel(f"{joint.coordinate} (deg)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small")
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(f"{chain.name}: {finished.shape[0]} of {histories.shape[0]} samples")
+    return fig
+
+
+def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> None:
+    """sweep.csv, sweep_percentiles.csv, sweep.png, rank_correlations.csv, sweep.html."""
+    from ..plots import save_figure
+    from .sweep import outcome_columns
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(out / "sweep.csv", frame.to_csv(index=False))
+    grid = np.linspace(0.0, chain.duration, histories.shape[2])
+    finished = histories[~np.isnan(histories[:, 0, 0])]
+    bands = {"time": grid}
+    for j, joint in enumerate(chain.joints):
+        if finished.shape[0]:
+            for p, row in zip(PERCENTILES, np.percentile(finished[:, j], PERCENTILES, axis=0),
+                              strict=True):
+                bands[f"{joint.name}_p{p}_deg"] = row
+    write_text_atomic(out / "sweep_percentiles.csv", _csv(bands))
+    figure = plot_bands(chain, histories)
+    png_path = out / "sweep.png"
+    save_figure(figure, png_path)
+    parameters = [d.path for d in distributions]
+    outcomes = [c for c in outcome_columns(chain) if c not in ("guard", "error")]
+    rho = rank_correlations(frame, parameters, outcomes)
+    rows = [[p, *(rho[p][o] for o in outcomes)] for p in parameters]
+    write_text_atomic(out / "rank_correlations.csv",
+                      ",".join(["parameter", *outcomes]) + "\n"
+                      + "".join(",".join([r[0], *(repr(v) for v in r[1:])]) + "\n"
+                                for r in rows))
+    counts = frame["guard"].value_counts().to_dict()
+    body = [f"<p>{len(frame)} samples: {counts.get('ok', 0)} ok, "
+            f"{counts.get('exceeded', 0)} beyond the RK4 stability limit, "
+            f"{counts.get('failed', 0)} failed (their errors are in sweep.csv).</p>",
+            image(png_path.read_bytes(), "percentile bands"),
+            "<h2>Spearman rank correlation of each parameter with each outcome</h2>",
+            table(["parameter", *outcomes], rows),
+            "<h2>Distributions</h2>",
+            table(["parameter", "distribution"],
+                  [[d.path, f"{d.kind}({d.a:g}, {d.b:g}" + (f", {d.n})" if d.kind == "grid"
+                                                           else ")")] for d in distributions]),
+            "<h2>Settings</h2>", settings_table(settings)]
+    write_text_atomic(out / "sweep.html", page(f"torquesim sweep: {chain.name}", body))
+    write_text_atomic(out / "sweep_settings.json", json.dumps(settings, indent=2) + "\n")
+
+
+def _csv(columns: dict) -> str:
+    names = list(columns)
+    rows = zip(*(np.asarray(columns[n]) for n in names), strict=True)
+    return ",".join(names) + "\n" + "".join(",".join(repr(float(v)) for v in r) + "\n"
+                                            for r in rows)
+
+
+#: The columns of batch.csv.
+BATCH_COLUMNS = ("name", "target", "model", "status", "rms_deg", "max_deg",
+                 "reference_rms_deg", "simulations", "wall_time_s", "worker", "error")
+
+
+def write_batch_table(out: Path, rows: list[dict]) -> None:
+    """batch.csv (one row per target, in the order given), atomically."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=BATCH_COLUMNS, extrasaction="ignore")
+    writer.writeheader()
+    writer.writerows({k: ("" if r.get(k) is None else r.get(k)) for k in BATCH_COLUMNS}
+                     for r in rows)
+    write_text_atomic(out / "batch.csv", buf.getvalue())
+
+
+def plot_fits(out: Path, rows: list[dict]):
+    """Small multiples: every finished fit's target and reference-simulated angles."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from ..io.tables import read_table
+
+    done = [r for r in rows if r["status"] in ("done", "done earlier")]
+    cols = min(4, max(1, len(done)))
+    nrows = max(1, math.ceil(len(done) / cols))
+    fig, axes = plt.subplots(nrows, cols, figsize=(3.2 * cols, 2.4 * nrows + 0.4),
+                             squeeze=False, constrained_layout=True)
+    for ax in axes.flat:
+        ax.set_visible(False)
+    for ax, row in zip(axes.flat, done, strict=False):
+        ax.set_visible(True)
+        motion = read_table(out / row["name"] / "fit_motion.csv")
+        for key in motion:
+            if key.endswith("_target_deg"):
+                joint = key.removesuffix("_target_deg")
+                ax.plot(motion["time"], motion[key], "--", color="tab:red", lw=1)
+                ax.plot(motion["time"], motion[f"{joint}_reference_deg"], color="k", lw=1)
+        ax.set_title(f"{row['name']}: {row['reference_rms_deg']:.2f}° RMS", fontsize="small")
+        ax.tick_params(labelsize="x-small")
+        ax.grid(alpha=0.3)
+    fig.suptitle("target (red, dashed) and fit re-simulated with the reference (black), deg")
+    return fig
+
+
+def write_batch_page(out: Path, rows: list[dict], settings: dict) -> None:
+    """batch.html: the table and the small multiples."""
+    from ..study.report import figure_png
+
+    png = figure_png(plot_fits(out, rows))
+    write_atomic(out / "batch.png", lambda p: p.write_bytes(png))
+    body = [table(BATCH_COLUMNS, [[r.get(c) for c in BATCH_COLUMNS] for r in rows]),
+            image(png, "every fit"), "<h2>Settings</h2>", settings_table(settings)]
+    write_text_atomic(out / "batch.html", page("torquesim batch fit", body))

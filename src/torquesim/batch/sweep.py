@@ -1,0 +1,326 @@
+"""Monte Carlo and grid sweeps over model parameters, simulated in chunks on Dask workers.
+
+A parameter is named by its path in the model file: ``UNIT.FIELD`` (a torque-generator field
+of a unit; ``flexor``/``extensor`` and ``JOINT.flexor`` name a joint's one unit of that
+direction, as in the fit), ``JOINT.FIELD``, ``SEGMENT.FIELD``, ``SEGMENT.LOAD.FIELD`` (a point
+load), ``gravity`` or ``base_angle``; ``units.NAME.FIELD`` and the like are accepted too.
+Distributions: ``uniform(LOW,HIGH)``, ``normal(MEAN,SD)``, ``lognormal(MEDIAN,SIGMA)`` (σ of
+the logarithm) or ``grid(LOW,HIGH,N)``. Samples are drawn in the client from the seed (or
+a scrambled Sobol' sequence), so the table does not depend on the number of workers.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelError, SimulationError
+from ..fitting.parameters import unit_aliases
+from ..model.chain import ChainModel, as_chain
+from ..model.torque_generator import TorqueGeneratorUnit
+
+DISTRIBUTIONS = ("uniform", "normal", "lognormal", "grid")
+#: Points of each joint's angle history kept per sample (for the percentile bands).
+HISTORY_POINTS = 101
+DEFAULT_CHUNK = 1000
+SWEEP_METHODS = ("imex", "monolithic", "partitioned")
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """A named parameter's distribution: kind and its two (grid: three) numbers."""
+
+    path: str
+    kind: str
+    a: float
+    b: float
+    n: int = 0
+
+    def sample(self, uniforms: np.ndarray) -> np.ndarray:
+        """Values at the quantiles ``uniforms`` (0–1)."""
+        from scipy import stats
+
+        if self.kind == "uniform":
+            return self.a + (self.b - self.a) * uniforms
+        if self.kind == "normal":
+            return stats.norm.ppf(uniforms, self.a, self.b)
+        return self.a * np.exp(self.b * stats.norm.ppf(uniforms))  # lognormal
+
+    def grid(self) -> np.ndarray:
+        return np.linspace(self.a, self.b, self.n)
+
+
+def parse_vary(text: str) -> Distribution:
+    """``PATH=KIND(a,b[,n])`` → :class:`Distribution`."""
+    path, eq, spec = text.partition("=")
+    found = re.fullmatch(r"\s*(\w+)\s*\(([^)]*)\)\s*", spec)
+    example = "flexor.se_stiffness=normal(600,60)"
+    if not eq or not path.strip() or not found or found.group(1) not in DISTRIBUTIONS:
+        raise ModelError("--vary", f"{text!r}; allowed PATH=KIND(...), KIND one of "
+                         f"{', '.join(DISTRIBUTIONS)}, e.g. {example}")
+    kind = found.group(1)
+    try:
+        numbers = [float(v) for v in found.group(2).split(",")]
+    except ValueError:
+        numbers = []
+    count = 3 if kind == "grid" else 2
+    if len(numbers) != count or not all(math.isfinite(v) for v in numbers):
+        raise ModelError("--vary", f"{text!r}: {kind} takes {count} finite numbers")
+    a, b = numbers[:2]
+    if kind == "uniform" and not a < b:
+        raise ModelError("--vary", f"{text!r}: uniform(LOW,HIGH) needs LOW < HIGH")
+    if kind in ("normal", "lognormal") and not b > 0:
+        raise ModelError("--vary", f"{text!r}: the spread must be > 0")
+    if kind == "lognormal" and not a > 0:
+        raise ModelError("--vary", f"{text!r}: lognormal(MEDIAN,SIGMA) needs MEDIAN > 0")
+    if kind == "grid":
+        n = numbers[2]
+        if not (n == int(n) and 1 <= n <= 10_000 and a <= b):
+            raise ModelError("--vary", f"{text!r}: grid(LOW,HIGH,N) needs LOW ≤ HIGH and N "
+                             "a whole number in [1, 10000]")
+        return Distribution(path.strip(), kind, a, b, int(n))
+    return Distribution(path.strip(), kind, a, b)
+
+
+def set_parameter(model: ChainModel, path: str, value: float) -> ChainModel:
+    """``model`` with the numeric field at ``path`` (module docstring) set to ``value``;
+    the changed model is validated (a value out of range is a ModelError naming it)."""
+    parts = path.split(".")
+    if parts[0] in ("units", "joints", "segments") and len(parts) >= 3:
+        parts = parts[1:]
+    unit_fields = {f.name for f in fields(TorqueGeneratorUnit)}
+    units = {u.name: u.name for u in model.units} | unit_aliases(model)
+    head = ".".join(parts[:-1])
+    name = parts[-1]
+    value = float(value)
+    try:
+        if len(parts) == 1 and name in ("gravity", "base_angle"):
+            return model.replace(**{name: value})
+        if head in units and name in unit_fields:
+            unit = model.units[model.unit_index(units[head])]
+            return model.replace_unit(unit.name,
+                                      parameters=replace(unit.parameters, **{name: value}))
+        joints = {j.name for j in model.joints}
+        joint_fields = {f.name for f in fields(type(model.joints[0]))} - {"name", "coordinate"}
+        if head in joints and name in joint_fields:
+            return model.replace_joint(head, **{name: value})
+        segments = {s.name: s for s in model.segments}
+        segment_fields = {f.name for f in fields(type(model.segments[0]))} - {"name", "loads"}
+        if head in segments and name in segment_fields:
+            return model.replace_segment(head, **{name: value})
+        if len(parts) == 3 and parts[0] in segments:
+            segment = segments[parts[0]]
+            loads = {ld.name: i for i, ld in enumerate(segment.loads)}
+            if parts[1] in loads and name in ("mass", "distance", "inertia"):
+                new = list(segment.loads)
+                new[loads[parts[1]]] = replace(new[loads[parts[1]]], **{name: value})
+                return model.replace_segment(parts[0], loads=tuple(new))
+    except ModelError as exc:
+        raise ModelError(path, f"{value:g} gives an invalid model: {exc.reason}") from None
+    raise ModelError("--vary", f"{path!r} is not a numeric model field; allowed: UNIT.FIELD "
+                     f"(units {', '.join(units)}), JOINT.FIELD, SEGMENT.FIELD, "
+                     "SEGMENT.LOAD.mass|distance|inertia, gravity, base_angle")
+
+
+def sample_matrix(distributions, samples: int, seed: int, sobol: bool = False) -> np.ndarray:
+    """(N, P) parameter values: Monte Carlo (or Sobol') over the non-grid distributions,
+    crossed with every grid; with only grids, their Cartesian product (``samples`` unused)."""
+    from scipy.stats import qmc
+
+    random = [d for d in distributions if d.kind != "grid"]
+    grids = [d for d in distributions if d.kind == "grid"]
+    rows = 1
+    draws = np.empty((1, 0))
+    if random:
+        if sobol:
+            uniforms = qmc.Sobol(d=len(random), scramble=True, seed=seed).random(samples)
+        else:
+            uniforms = np.random.default_rng(seed).random((samples, len(random)))
+        uniforms = np.clip(uniforms, 1e-12, 1 - 1e-12)
+        draws = np.column_stack([d.sample(uniforms[:, i]) for i, d in enumerate(random)])
+        rows = samples
+    mesh = np.array(np.meshgrid(*[g.grid() for g in grids], indexing="ij")).reshape(
+        len(grids), -1).T if grids else np.empty((1, 0))
+    combined = np.empty((rows * mesh.shape[0], len(distributions)))
+    order = [distributions.index(d) for d in random] + [distributions.index(d) for d in grids]
+    block = np.hstack([np.repeat(draws, mesh.shape[0], axis=0), np.tile(mesh, (rows, 1))])
+    combined[:, order] = block
+    return combined
+
+
+def outcome_columns(model: ChainModel) -> list[str]:
+    """The outcome columns of a sweep's table for ``model``."""
+    out = []
+    for joint in model.joints:
+        out += [f"peak_{joint.name}_deg", f"peak_{joint.name}_time_s",
+                f"final_{joint.name}_deg"]
+    return out + ["max_unit_torque_nm", "guard", "error"]
+
+
+def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, method: str,
+                   step: float) -> dict:
+    """Simulate every row of ``values`` (a Dask task). Returns the outcome arrays, the angle
+    histories (samples × joints × :data:`HISTORY_POINTS`, deg, NaN for failed samples) and
+    the worker. A failing sample fills its own row with its one-line error."""
+    from ..solvers.simulate import simulate
+    from .engine import single_threaded, worker_name
+
+    single_threaded()
+    n = base.n_joints
+    m = values.shape[0]
+    numbers = np.full((m, 3 * n + 1), np.nan)
+    guard = ["failed"] * m
+    errors = [""] * m
+    grid = np.linspace(0.0, base.duration, HISTORY_POINTS)
+    histories = np.full((m, n, HISTORY_POINTS), np.nan, dtype=np.float32)
+    for i, row in enumerate(values):
+        try:
+            model = base
+            for path, value in zip(paths, row, strict=True):
+                model = set_parameter(model, path, value)
+            result = simulate(model, method, step, check=False, advise=False)
+            if not result.success:
+                raise SimulationError(result.message)
+        except (ModelError, SimulationError) as exc:
+            errors[i] = str(exc).splitlines()[0]
+            continue
+        q = np.degrees(result.q)
+        for j in range(n):
+            peak = int(np.argmax(q[:, j]))
+            numbers[i, 3 * j: 3 * j + 3] = q[peak, j], result.time[peak], q[-1, j]
+            histories[i, j] = np.interp(grid, result.time, q[:, j])
+        columns = result.columns()
+        numbers[i, -1] = max(float(np.max(np.abs(columns[f"torque_{u.name}"])))
+                             for u in model.units)
+        exceeded = result.stability is not None and result.stability.exceeded
+        guard[i] = "exceeded" if exceeded else "ok"
+        errors[i] = result.message if exceeded else ""
+    return {"numbers": numbers, "guard": guard, "errors": errors, "histories": histories,
+            "worker": worker_name()}
+
+
+def fingerprint(model_toml: str, values: np.ndarray, method: str, step: float, paths) -> str:
+    """Hash of what a finished chunk is valid for."""
+    h = hashlib.sha256()
+    h.update(model_toml.encode())
+    h.update(np.ascontiguousarray(values).tobytes())
+    h.update(repr((method, step, list(paths))).encode())
+    return h.hexdigest()[:16]
+
+
+def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = False,
+          method: str = "imex", step: float = 5e-3, out=None, chunk: int = DEFAULT_CHUNK,
+          client=None, workers: int | None = None, scheduler: str | None = None,
+          progress=None):
+    """Simulate ``model`` (a chain, a file or ``builtin:NAME``) over the parameter
+    distributions ``vary`` (``PATH=KIND(...)`` strings or :class:`Distribution`) on Dask.
+
+    Returns (table, histories): a pandas DataFrame with one row per sample (its parameter
+    values, each joint's peak angle and its time, final angle, the largest unit torque, the
+    stability guard's verdict and any error) and the angle histories (samples × joints ×
+    :data:`HISTORY_POINTS`, deg). With ``out``, finished chunks are kept in
+    ``out/chunks/`` as they arrive (a rerun with the same settings skips them) and the
+    table, percentile figure and rank correlations are written there.
+    """
+    from ..io.model_file import load_model, model_to_toml
+    from .engine import connect, run_tasks
+
+    if method not in SWEEP_METHODS:
+        raise ModelError("--method", f"{method!r}; allowed: {', '.join(SWEEP_METHODS)}")
+    if not 1 <= samples <= 10_000_000:
+        raise ModelError("--samples", f"{samples}; allowed 1 to 10000000")
+    if not 1 <= chunk <= 1_000_000:
+        raise ModelError("--chunk", f"{chunk}; allowed 1 to 1000000")
+    chain = as_chain(load_model(model) if isinstance(model, str | Path) else model)
+    distributions = [d if isinstance(d, Distribution) else parse_vary(d) for d in vary]
+    if not distributions:
+        raise ModelError("--vary", "nothing to vary; allowed: one or more PATH=KIND(...)")
+    paths = [d.path for d in distributions]
+    for d in distributions:  # every path and a typical value checked before any work
+        typical = d.a if d.kind != "uniform" else 0.5 * (d.a + d.b)
+        set_parameter(chain, d.path, typical)
+    values = sample_matrix(distributions, samples, seed, sobol)
+    model_toml = model_to_toml(chain)
+    starts = list(range(0, values.shape[0], chunk))
+    results: dict[int, dict] = {}
+    chunk_dir = Path(out) / "chunks" if out is not None else None
+    if chunk_dir is not None:
+        chunk_dir.mkdir(parents=True, exist_ok=True)
+        for k, s in enumerate(starts):
+            kept = _load_chunk(chunk_dir / f"chunk_{k:05d}.npz",
+                               fingerprint(model_toml, values[s:s + chunk], method, step, paths))
+            if kept is not None:
+                results[k] = kept
+    todo = [k for k in range(len(starts)) if k not in results]
+
+    def keep(i, result):
+        k = todo[i]
+        results[k] = result
+        if chunk_dir is not None:
+            _save_chunk(chunk_dir / f"chunk_{k:05d}.npz", result,
+                        fingerprint(model_toml, values[starts[k]:starts[k] + chunk], method,
+                                    step, paths))
+
+    if todo:
+        with connect(client, workers=workers, scheduler=scheduler) as dask_client:
+            run_tasks(dask_client, [(simulate_chunk, (chain, paths,
+                                                      values[starts[k]:starts[k] + chunk],
+                                                      method, step)) for k in todo],
+                      keep, progress=progress)
+    table, histories = _assemble(chain, paths, values, [results[k] for k in range(len(starts))])
+    if out is not None:
+        from .report import write_sweep
+
+        write_sweep(Path(out), chain, table, histories, distributions,
+                    {"samples": int(values.shape[0]), "seed": seed, "sobol": sobol,
+                     "method": method, "step_s": step, "chunk": chunk})
+    return table, histories
+
+
+def _assemble(chain, paths, values, parts):
+    import pandas as pd
+
+    numbers = np.vstack([p["numbers"] for p in parts])
+    table = pd.DataFrame(values, columns=paths)
+    columns = outcome_columns(chain)
+    for i, name in enumerate(columns[:-2]):
+        table[name] = numbers[:, i]
+    table["guard"] = [g for p in parts for g in p["guard"]]
+    table["error"] = [e for p in parts for e in p["errors"]]
+    table["worker"] = [p["worker"] for p in parts for _ in p["guard"]]
+    table.insert(0, "sample", np.arange(len(table)))
+    histories = np.concatenate([p["histories"] for p in parts])
+    return table, histories
+
+
+def _save_chunk(path: Path, result: dict, key: str) -> None:
+    from ..io.atomic import write_atomic
+
+    def write(tmp: Path) -> None:
+        with tmp.open("wb") as fh:
+            np.savez(fh, numbers=result["numbers"], histories=result["histories"],
+                     meta=json.dumps({"fingerprint": key, "guard": result["guard"],
+                                      "errors": result["errors"], "worker": result["worker"]}))
+
+    write_atomic(path, write)
+
+
+def _load_chunk(path: Path, key: str) -> dict | None:
+    """A finished chunk made with the same settings, or None (missing, other, damaged)."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            if meta.get("fingerprint") != key:
+                return None
+            return {"numbers": data["numbers"], "histories": data["histories"],
+                    "guard": meta["guard"], "errors": meta["errors"], "worker": meta["worker"]}
+    except Exception:  # noqa: BLE001 - a damaged chunk is simply simulated again
+        return None
