@@ -38,7 +38,7 @@ def connect(client=None, *, workers: int | None = None,
     if not 1 <= n <= 1024:
         raise ModelError("--workers", f"{n}; allowed 1 to 1024")
     with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                      dashboard_address=None, silence_logs=40) as cluster, \
+                      dashboard_address=":0", silence_logs=40) as cluster, \
             Client(cluster) as local:
         yield local
 

@@ -1,0 +1,174 @@
+"""Batch fits and sweeps on a real Dask cluster (LocalCluster, 2 worker processes): a bad
+target fails its own row, reruns do no finished work twice, a sweep with a known answer,
+the same seed gives the same table whatever the number of workers."""
+
+import math
+
+import numpy as np
+import pytest
+
+import torquesim as ts
+from torquesim.batch import fit_many, sweep
+from torquesim.batch.sweep import parse_vary, sample_matrix, set_parameter
+from torquesim.cli import main
+
+distributed = pytest.importorskip("distributed")
+
+FAST_FIT = dict(starts=1, iterations=3)
+
+
+@pytest.fixture(scope="module")
+def client():
+    """Compile (or load from cache) the kernels here first, so the workers only load them."""
+    from torquesim.fitting import FitProblem, Target
+
+    ts.simulate(ts.load_model("builtin:elbow-curl").replace(duration=0.1), "imex", 5e-3)
+    t = np.linspace(0, 0.2, 21)
+    FitProblem(Target(t, np.full((1, 21), 0.3), ("elbow",))).residuals(
+        np.full(18, 0.2))
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        yield c
+
+
+def _target(path, peak=40.0):
+    t = np.arange(0, 0.6001, 0.01)
+    angle = 20 + (peak - 20) * (10 * (t / 0.6) ** 3 - 15 * (t / 0.6) ** 4 + 6 * (t / 0.6) ** 5)
+    path.write_text("time,elbow\n" + "".join(f"{a},{b}\n" for a, b in zip(t, angle,
+                                                                          strict=True)))
+    return str(path)
+
+
+def test_a_bad_target_fails_its_row_and_the_batch_goes_on(client, tmp_path):
+    good = _target(tmp_path / "good.csv")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,elbow\n0,1\n0.01,oops\n")
+    table = fit_many([good, str(bad)], out=tmp_path / "out", client=client, **FAST_FIT)
+    rows = table.set_index("name")
+    assert rows.loc["good", "status"] == "done" and rows.loc["bad", "status"] == "failed"
+    assert "line 3" in rows.loc["bad", "error"] and "\n" not in rows.loc["bad", "error"]
+    assert rows.loc["good", "reference_rms_deg"] < 5
+    assert (tmp_path / "out" / "good" / "fitted_model.toml").is_file()
+    assert (tmp_path / "out" / "batch.csv").read_text().count("\n") == 3
+    assert "data:image/png;base64," in (tmp_path / "out" / "batch.html").read_text()
+
+
+def test_a_rerun_does_no_finished_work_twice(client, tmp_path):
+    targets = [_target(tmp_path / "a.csv", 40.0), _target(tmp_path / "b.csv", 50.0)]
+    out = tmp_path / "out"
+    first = fit_many(targets, out=out, client=client, **FAST_FIT).set_index("name")
+    assert set(first["status"]) == {"done"}
+    # b is "interrupted": its fit never finished (no summary, no fingerprint)
+    (out / "b" / "batch_fingerprint.txt").unlink()
+    (out / "b" / "fit_summary.json").unlink()
+    a_model = (out / "a" / "fitted_model.toml").stat().st_mtime_ns
+    second = fit_many(targets, out=out, client=client, **FAST_FIT).set_index("name")
+    assert second.loc["a", "status"] == "done earlier" and second.loc["a", "worker"] == ""
+    assert (out / "a" / "fitted_model.toml").stat().st_mtime_ns == a_model
+    assert second.loc["b", "status"] == "done"
+    # other settings: the finished fit does not count
+    third = fit_many(targets[:1], out=out, client=client, starts=1,
+                     iterations=4).set_index("name")
+    assert third.loc["a", "status"] == "done"
+
+
+def test_sweeping_the_dumbbell_mass_lowers_the_peak_monotonically(client, tmp_path):
+    """A heavier dumbbell with the same activations: a lower peak, every time (ρ = −1), and
+    percentile bands in order."""
+    table, histories = sweep("builtin:elbow-curl", ["forearm_hand.dumbbell.mass=grid(3,7,9)"],
+                             out=tmp_path, chunk=4, client=client)
+    assert list(table["guard"]) == ["ok"] * 9
+    peaks = table.sort_values("forearm_hand.dumbbell.mass")["peak_elbow_deg"].to_numpy()
+    assert np.all(np.diff(peaks) < 0)
+    rho = (tmp_path / "rank_correlations.csv").read_text().splitlines()[1].split(",")
+    assert float(rho[1]) == pytest.approx(-1.0)
+    bands = ts.read_table(tmp_path / "sweep_percentiles.csv")
+    assert np.all(bands["elbow_p5_deg"] <= bands["elbow_p50_deg"] + 1e-9)
+    assert np.all(bands["elbow_p50_deg"] <= bands["elbow_p95_deg"] + 1e-9)
+    assert histories.shape == (9, 1, 101)
+    assert (tmp_path / "sweep.png").stat().st_size > 0
+
+
+def test_the_same_seed_gives_the_same_table_whatever_the_workers(client, tmp_path):
+    vary = ["flexor.se_stiffness=normal(600,60)", "elbow_extensor.isometric_torque=uniform(30,50)"]
+    two, _ = sweep("builtin:elbow-curl", vary, samples=12, seed=7, chunk=5, client=client)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as one_worker:
+        one, _ = sweep("builtin:elbow-curl", vary, samples=12, seed=7, chunk=12,
+                       client=one_worker)
+    columns = [c for c in two.columns if c != "worker"]
+    assert two[columns].equals(one[columns])
+    other, _ = sweep("builtin:elbow-curl", vary, samples=12, seed=8, chunk=12, client=client)
+    assert not other[vary[0].split("=")[0]].equals(two[vary[0].split("=")[0]])
+
+
+def test_finished_chunks_are_not_simulated_again(client, tmp_path, monkeypatch):
+    vary = ["forearm_hand.dumbbell.mass=uniform(4,6)"]
+    first, _ = sweep("builtin:elbow-curl", vary, samples=6, chunk=3, out=tmp_path,
+                     client=client)
+    import torquesim.batch.engine as engine
+
+    def no_cluster(*a, **k):
+        raise AssertionError("a finished sweep asked for workers")
+
+    monkeypatch.setattr(engine, "connect", no_cluster)
+    again, _ = sweep("builtin:elbow-curl", vary, samples=6, chunk=3, out=tmp_path)
+    assert again.equals(first)
+
+
+def test_a_failing_sample_fails_its_own_row(client):
+    """An SE stiffness the model refuses (≤ 0) fails its row with the one-line error."""
+    table, _ = sweep("builtin:elbow-curl", ["flexor.se_stiffness=uniform(-100,600)"],
+                     samples=8, seed=3, chunk=8, client=client)
+    bad = table[table["flexor.se_stiffness"] <= 0]
+    assert len(bad) > 0 and set(bad["guard"]) == {"failed"}
+    assert all("se_stiffness" in e for e in bad["error"])
+    assert set(table.loc[table["flexor.se_stiffness"] > 50, "guard"]) == {"ok"}
+
+
+def test_sample_matrix_crosses_grids_with_random_draws():
+    d = [parse_vary("a=normal(1,0.1)"), parse_vary("b=grid(0,1,3)")]
+    values = sample_matrix(d, 4, seed=1)
+    assert values.shape == (12, 2)
+    assert sorted(set(values[:, 1])) == [0.0, 0.5, 1.0]
+    assert np.allclose(values[:, 0], np.repeat(values[::3, 0], 3))
+    lognormal = sample_matrix([parse_vary("c=lognormal(600,0.1)")], 4000, seed=2)[:, 0]
+    assert np.median(lognormal) == pytest.approx(600, rel=0.02)
+    sobol = sample_matrix([parse_vary("u=uniform(0,1)")], 64, seed=1, sobol=True)[:, 0]
+    assert np.histogram(sobol, bins=8, range=(0, 1))[0].tolist() == [8] * 8
+
+
+@pytest.mark.parametrize("text", ["se_stiffness", "a=normal(1)", "a=weibull(1,2)",
+                                  "a=uniform(2,1)", "a=normal(1,-1)", "a=grid(0,1,0.5)"])
+def test_bad_distributions_are_refused(text):
+    with pytest.raises(ts.ModelError):
+        parse_vary(text)
+
+
+def test_parameter_paths_follow_the_model_file():
+    arm = ts.load_model("builtin:arm-raise")
+    assert set_parameter(arm, "shoulder_flexor.se_stiffness", 500).units[0] \
+        .parameters.se_stiffness == 500
+    assert set_parameter(arm, "units.elbow.extensor.isometric_torque", 40).units[3] \
+        .parameters.isometric_torque == 40
+    assert set_parameter(arm, "forearm_hand.dumbbell.mass", 3).segments[1].loads[0].mass == 3
+    assert set_parameter(arm, "elbow.initial_angle", 0.5).joints[1].initial_angle == 0.5
+    assert set_parameter(arm, "gravity", 1.6).gravity == 1.6
+    with pytest.raises(ts.ModelError, match="not a numeric model field"):
+        set_parameter(arm, "flexor.se_stiffness", 1.0)  # two joints: 'flexor' is ambiguous
+    with pytest.raises(ts.ModelError, match="se_stiffness"):
+        set_parameter(arm, "elbow_flexor.se_stiffness", -1.0)
+    assert math.isclose(set_parameter(ts.load_model("builtin:elbow-curl"),
+                                      "flexor.se_stiffness", 700).units[0]
+                        .parameters.se_stiffness, 700)
+
+
+def test_batch_cli_bad_input_is_one_line_exit_2(tmp_path, capsys):
+    assert main(["batch", "sweep", "--vary", "nonsense", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--vary" in err
+    assert main(["batch", "fit", str(tmp_path / "none*.csv"), "--out", str(tmp_path / "f")]) \
+        == 2
+    assert "matches no file" in capsys.readouterr().err
