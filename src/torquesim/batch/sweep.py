@@ -195,14 +195,24 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
             peak = int(np.argmax(q[:, j]))
             numbers[i, 3 * j: 3 * j + 3] = q[peak, j], result.time[peak], q[-1, j]
             histories[i, j] = np.interp(grid, result.time, q[:, j])
-        columns = result.columns()
-        numbers[i, -1] = max(float(np.max(np.abs(columns[f"torque_{u.name}"])))
-                             for u in model.units)
+        numbers[i, -1] = max_unit_torque(model, result.states)
         exceeded = result.stability is not None and result.stability.exceeded
         guard[i] = "exceeded" if exceeded else "ok"
         errors[i] = result.message if exceeded else ""
     return {"numbers": numbers, "guard": guard, "errors": errors, "histories": histories,
             "worker": worker_name()}
+
+
+def max_unit_torque(model: ChainModel, states: np.ndarray) -> float:
+    """The largest SE torque k·max(d·(θ_cc − q_j), 0) of any unit over the run, N·m
+    (docs/model.md §2; the same as the ``torque_<unit>`` output columns)."""
+    n = model.n_joints
+    joints = {j.name: k for k, j in enumerate(model.joints)}
+    worst = 0.0
+    for u, unit in enumerate(model.units):
+        stretch = unit.direction * (states[:, 2 * n + u] - states[:, joints[unit.joint]])
+        worst = max(worst, unit.parameters.se_stiffness * float(np.max(stretch)))
+    return worst
 
 
 def fingerprint(model_toml: str, values: np.ndarray, method: str, step: float, paths) -> str:

@@ -477,6 +477,7 @@ class ChainModel:
 
     def initial_state(self) -> ChainStart:
         """Static equilibrium at rest at the joints' initial angles (docs/model.md §4).
+        Solved once per (immutable) model; each call returns fresh copies of the arrays.
 
         At joint j the units must cancel the load τ_load = Σ_{k≥j} g·B_k·sin φ_k − T_p(q_j)
         (gravity and end stops; flexion positive).
@@ -495,6 +496,14 @@ class ChainModel:
 
         Raises :class:`ModelError` naming the joint when no level in [0, 1] holds it.
         """
+        start = self.__dict__.get("_start")
+        if start is None:
+            start = self._solve_initial_state()
+            self.__dict__["_start"] = start  # frozen: cache outside the fields
+        return ChainStart(start.state.copy(), start.levels.copy(), start.torques.copy())
+
+    def _solve_initial_state(self) -> ChainStart:
+        """:meth:`initial_state`, solved."""
         n, nu = self.n_joints, self.n_units
         q0 = np.array([float(j.initial_angle) for j in self.joints])
         segments = self.segment_array()

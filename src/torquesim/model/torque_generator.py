@@ -155,12 +155,21 @@ class TorqueGeneratorUnit:
         return p
 
 
+#: The T_ω and d parameter sets already found monotone (h depends on p[T0 : OMEGA_1 + 1]
+#: only), so that sweeps over the other fields (SE stiffness, angle curve) do not repeat the
+#: check.
+_MONOTONE = set()
+
+
 def _check_monotone(p: np.ndarray) -> None:
     """Reject a parameter set for which h = d·T_ω is not strictly decreasing on [-ω_max, ω_max].
 
     h is checked on a dense grid (4001 points per branch) together with the sign of its
     analytical derivative; the CE velocity is then the unique root of h(ω) = target.
     """
+    key = p[T0: OMEGA_1 + 1].tobytes()
+    if key in _MONOTONE:
+        return
     wmax = p[OMEGA_MAX]
     grid = np.concatenate([np.linspace(-wmax, 0.0, 4001), np.linspace(0.0, wmax, 4001)[1:]])
     values, slopes = _h_on_grid(grid, p)
@@ -173,6 +182,9 @@ def _check_monotone(p: np.ndarray) -> None:
             "velocity is not unique; allowed: parameter sets with a decreasing h "
             "(raise min_differential_activation or differential_activation_rate)",
         )
+    if len(_MONOTONE) > 4096:
+        _MONOTONE.clear()
+    _MONOTONE.add(key)
 
 
 @njit(cache=True, error_model="numpy")

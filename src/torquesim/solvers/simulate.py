@@ -98,9 +98,9 @@ def simulate(
     if duration is not None:
         model = model.replace(duration=check_range("duration", duration, 0.0, 600.0,
                                                    low_open=True, unit="s"))
-    packed = model.pack()
-    y0 = model.initial_state().state if initial_state is None else \
-        _check_state(initial_state, model)
+    start = model.initial_state()
+    packed = model.pack(start.levels)
+    y0 = start.state if initial_state is None else _check_state(initial_state, model)
     if method in FIXED_STEP_METHODS:
         if method == "imex":
             coupling = coupling or IMEX

@@ -1,0 +1,141 @@
+"""Batch benchmarks of the Dask issue, measured in one run on local clusters.
+
+Run:  python benchmarks/bench_batch.py [--fits 8] [--samples 10000] [--skip fits,sweep]
+
+Prints, for a LocalCluster of 1 and of 2 worker processes (one thread each), started and
+warmed up (kernels loaded, one task run) before any timing:
+
+1. 8 elbow fits (min-jerk curls with peaks 100°–135°, default least-squares fit, IMEX 5 ms):
+   wall time per cluster and the speed-up (target: 2 workers ≥ 1.7× one worker).
+2. A sweep of the elbow curl over the flexor SE stiffness and the dumbbell mass (IMEX 5 ms,
+   chunks of 1000): simulations per second per worker and per minute in all, the speed-up
+   (targets: ≥ 1.6× and ≥ 50 000 simulations per minute on 2 workers), and the per-task
+   overhead: the cluster's time per chunk minus the same chunk's time in this process, as a
+   fraction of the latter (target < 5 %), and the round trip of an empty task.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from distributed import Client, LocalCluster
+
+import torquesim as ts
+from torquesim.batch import fit_many, sweep
+from torquesim.batch.sweep import parse_vary, sample_matrix, simulate_chunk
+
+VARY = ["elbow_flexor.se_stiffness=normal(600,60)", "forearm_hand.dumbbell.mass=uniform(4,6)"]
+
+
+def curl_targets(folder: Path, count: int) -> list[str]:
+    paths = []
+    t = np.arange(0.0, 3.0001, 0.01)
+    for k, peak in enumerate(np.linspace(100.0, 135.0, count)):
+        s = np.where(t <= 1.5, t / 1.5, (3.0 - t) / 1.5)
+        angle = 10.0 + (peak - 10.0) * s**3 * (10 - 15 * s + 6 * s**2)
+        path = folder / f"curl_{k}.csv"
+        path.write_text("time,elbow\n" + "".join(f"{a:.2f},{b:.10g}\n" for a, b in zip(t, angle,
+                                                                                  strict=True)))
+        paths.append(str(path))
+    return paths
+
+
+def noop() -> None:
+    return None
+
+
+def warm(client: Client) -> None:
+    """Load the kernels in every worker (the Numba cache) before timing."""
+    model = ts.load_model("builtin:elbow-curl")
+    values = np.full((2, 1), 600.0)
+    futures = [client.submit(simulate_chunk, model, ["elbow_flexor.se_stiffness"], values,
+                             "imex", 5e-3, pure=False, workers=[w])
+               for w in client.scheduler_info()["workers"]]
+    client.gather(futures)
+
+
+def bench_fits(clients: dict, count: int) -> None:
+    print(f"1. {count} elbow fits (default least squares, IMEX 5 ms)")
+    with tempfile.TemporaryDirectory() as tmp:
+        targets = curl_targets(Path(tmp), count)
+        walls = {}
+        for n, client in clients.items():
+            start = time.perf_counter()
+            table = fit_many(targets, out=Path(tmp) / f"out{n}", client=client)
+            walls[n] = time.perf_counter() - start
+            print(f"   {n} worker(s): {walls[n]:.1f} s; {int((table.status == 'done').sum())} "
+                  f"done; reference RMS {table.reference_rms_deg.min():.3f}–"
+                  f"{table.reference_rms_deg.max():.3f} deg")
+        if len(walls) == 2:
+            ratio = walls[1] / walls[2]
+            print(f"   speed-up 2 vs 1 worker: {ratio:.2f}x (target ≥ 1.7: {ratio >= 1.7})")
+
+
+def bench_sweep(clients: dict, samples: int) -> None:
+    print(f"2. sweep: {samples} elbow simulations (IMEX 5 ms), chunks of 1000")
+    model = ts.load_model("builtin:elbow-curl")
+    values = sample_matrix([parse_vary(v) for v in VARY], 1000, seed=1)
+    start = time.perf_counter()
+    simulate_chunk(model, [v.split("=")[0] for v in VARY], values, "imex", 5e-3)
+    in_process = time.perf_counter() - start
+    print(f"   one chunk of 1000 in this process: {in_process:.2f} s "
+          f"({1000 / in_process:.0f} simulations/s)")
+    rates = {}
+    for n, client in clients.items():
+        start = time.perf_counter()
+        table, _ = sweep(model, VARY, samples=samples, chunk=1000, client=client)
+        wall = time.perf_counter() - start
+        rates[n] = samples / wall
+        tasks = samples / 1000
+        overhead = (wall * n / tasks - in_process) / in_process
+        print(f"   {n} worker(s): {wall:.1f} s, {rates[n]:.0f} simulations/s "
+              f"({rates[n] / n:.0f} per worker, {60 * rates[n]:.0f} per minute); "
+              f"{int((table.guard == 'ok').sum())} ok; time per chunk vs in-process "
+              f"{overhead * 100:+.1f} %")
+        trips = []
+        for _ in range(20):
+            t0 = time.perf_counter()
+            client.submit(noop, pure=False).result()
+            trips.append(time.perf_counter() - t0)
+        print(f"   empty task round trip: {statistics.median(trips) * 1e3:.1f} ms "
+              f"({statistics.median(trips) / in_process * 100:.2f} % of a chunk's work)")
+    if len(rates) == 2:
+        ratio = rates[2] / rates[1]
+        print(f"   speed-up 2 vs 1 worker: {ratio:.2f}x (target ≥ 1.6: {ratio >= 1.6}); "
+              f"{60 * rates[2]:.0f} per minute on 2 workers (target ≥ 50 000: "
+              f"{60 * rates[2] >= 50_000})")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--fits", type=int, default=8)
+    parser.add_argument("--samples", type=int, default=10_000)
+    parser.add_argument("--skip", default="")
+    args = parser.parse_args()
+    skip = set(args.skip.split(","))
+    print(f"cores: {os.cpu_count()}; load average at start: {os.getloadavg()[0]:.2f}")
+    clusters = {n: LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                dashboard_address=":0", silence_logs=40) for n in (1, 2)}
+    clients = {n: Client(c) for n, c in clusters.items()}
+    try:
+        for client in clients.values():
+            warm(client)
+        if "fits" not in skip:
+            bench_fits(clients, args.fits)
+        if "sweep" not in skip:
+            bench_sweep(clients, args.samples)
+    finally:
+        for n in clients:
+            clients[n].close()
+            clusters[n].close()
+    print(f"load average at end: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
