@@ -172,3 +172,33 @@ def test_batch_cli_bad_input_is_one_line_exit_2(tmp_path, capsys):
     assert main(["batch", "fit", str(tmp_path / "none*.csv"), "--out", str(tmp_path / "f")]) \
         == 2
     assert "matches no file" in capsys.readouterr().err
+
+
+def _die_once(marker: str) -> str:
+    """Kill this worker process the first time (as a crash would), succeed the second."""
+    import os
+    from pathlib import Path
+
+    if not Path(marker).exists():
+        Path(marker).write_text("died")
+        os._exit(1)
+    return "finished"
+
+
+def test_a_task_whose_worker_dies_is_run_again_elsewhere(client, tmp_path):
+    from torquesim.batch.engine import run_tasks
+
+    results = {}
+    run_tasks(client, [(_die_once, (str(tmp_path / "marker"),))],
+              lambda i, r: results.__setitem__(i, r))
+    assert results == {0: "finished"} and (tmp_path / "marker").read_text() == "died"
+
+
+def test_max_unit_torque_matches_the_output_columns():
+    from torquesim.batch.sweep import max_unit_torque
+
+    arm = ts.load_model("builtin:arm-raise")
+    result = ts.simulate(arm, "imex", 5e-3)
+    columns = result.columns()
+    expected = max(np.max(np.abs(columns[f"torque_{u.name}"])) for u in arm.units)
+    assert max_unit_torque(arm, result.states) == pytest.approx(expected, rel=1e-12)
