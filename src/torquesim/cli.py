@@ -289,6 +289,36 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
     return out
 
 
+#: The fit technique and search options, shared by ``fit`` and ``batch fit``.
+_SEARCH_OPTIONS = (
+    click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
+                 default="imex", show_default=True,
+                 help="Technique inside the fit. Explicit RK4 (monolithic, partitioned) needs "
+                      "a step ≤ ~0.25 ms on the default model; runs that break its stability "
+                      "limit score as failed."),
+    click.option("--step", type=TIME, default="5ms", show_default=True,
+                 help="Fixed step (s; ms/us suffixes); the largest step not above it that "
+                      "divides the target's span is used."),
+    click.option("--search", type=click.Choice(["least-squares", "global"]),
+                 default="least-squares", show_default=True,
+                 help="least-squares: trust-region least squares with a parallel "
+                      "finite-difference Jacobian from the inverse-dynamics start and perturbed "
+                      "starts (seconds); global: differential evolution + Nelder-Mead (robust, "
+                      "~10x the simulations)."),
+    click.option("--starts", type=click.IntRange(1, 100), default=4, show_default=True,
+                 help="least-squares: starting points screened (inverse dynamics + perturbed)."),
+    click.option("--iterations", type=click.IntRange(1, 100_000), default=200, show_default=True,
+                 help="least-squares: residual evaluations refining the best start."),
+    click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True),
+)
+
+
+def _search_options(fn):
+    for option in reversed(_SEARCH_OPTIONS):
+        fn = option(fn)
+    return fn
+
+
 def _parse_pairs(values, option: str, example: str) -> dict[str, str]:
     """``KEY=VALUE`` options as a dict of strings."""
     out = {}
@@ -316,25 +346,7 @@ def _parse_pairs(values, option: str, example: str) -> dict[str, str]:
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
               help="Model: a TOML file or builtin:elbow-curl|knee-extension|arm-raise. Every "
                    "unit's activation is fitted as 3 ramps (9 parameters per unit).")
-@click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
-              default="imex", show_default=True,
-              help="Technique inside the fit. Explicit RK4 (monolithic, partitioned) needs "
-                   "a step ≤ ~0.25 ms on the default model; runs that break its stability "
-                   "limit score as failed.")
-@click.option("--step", type=TIME, default="5ms", show_default=True,
-              help="Fixed step (s; ms/us suffixes); the largest step not above it that "
-                   "divides the target's span is used.")
-@click.option("--search", type=click.Choice(["least-squares", "global"]),
-              default="least-squares", show_default=True,
-              help="least-squares: trust-region least squares with a parallel "
-                   "finite-difference Jacobian from the inverse-dynamics start and perturbed "
-                   "starts (seconds); global: differential evolution + Nelder-Mead (robust, "
-                   "~10x the simulations).")
-@click.option("--starts", type=click.IntRange(1, 100), default=4, show_default=True,
-              help="least-squares: starting points screened (inverse dynamics + perturbed).")
-@click.option("--iterations", type=click.IntRange(1, 100_000), default=200, show_default=True,
-              help="least-squares: residual evaluations refining the best start.")
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True)
+@_search_options
 @click.option("--generations", type=click.IntRange(0, 100_000), default=300,
               show_default=True, help="global: differential-evolution generations.")
 @click.option("--population", type=click.IntRange(2, 100), default=10, show_default=True,
@@ -539,14 +551,7 @@ def _batch_progress(quiet: bool, label: str):
                    "instead of, or beside, TARGETS.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
               help="Model for every target without one in the manifest.")
-@click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
-              default="imex", show_default=True)
-@click.option("--step", type=TIME, default="5ms", show_default=True)
-@click.option("--search", type=click.Choice(["least-squares", "global"]),
-              default="least-squares", show_default=True)
-@click.option("--starts", type=click.IntRange(1, 100), default=4, show_default=True)
-@click.option("--iterations", type=click.IntRange(1, 100_000), default=200, show_default=True)
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True)
+@_search_options
 @click.option("--weight-effort", type=click.FloatRange(0.0, 1e6), default=0.0,
               show_default=True)
 @click.option("--units", type=click.Choice(["deg", "rad"]),
