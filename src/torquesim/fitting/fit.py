@@ -448,7 +448,8 @@ class _Run:
         if state["stage"] == "search" and remaining > 0:
             bounds = self.space.bounds()
             state["population"] = np.array(state["population"], dtype=float)
-            state["population"][-1] = np.asarray(state["best_x"])[self.free]
+            if state["generations_done"] > 0:  # resumed: the best so far takes part
+                state["population"][-1] = np.asarray(state["best_x"])[self.free]
 
             def on_generation(intermediate_result):
                 state["generations_done"] += 1
