@@ -202,3 +202,23 @@ def test_max_unit_torque_matches_the_output_columns():
     columns = result.columns()
     expected = max(np.max(np.abs(columns[f"torque_{u.name}"])) for u in arm.units)
     assert max_unit_torque(arm, result.states) == pytest.approx(expected, rel=1e-12)
+
+
+def test_ctrl_c_keeps_what_finished_and_the_rerun_completes_the_rest(client, tmp_path):
+    """Ctrl-C (KeyboardInterrupt, raised here as the first fit is reported) stops the batch
+    with the finished fit in batch.csv; the same call again fits only the other target."""
+    targets = [_target(tmp_path / "a.csv", 40.0), _target(tmp_path / "b.csv", 50.0)]
+    out = tmp_path / "out"
+
+    def interrupt(done, total):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        fit_many(targets, out=out, client=client, progress=interrupt, **FAST_FIT)
+    rows = (out / "batch.csv").read_text().splitlines()
+    assert len(rows) == 2 and ",done," in rows[1]
+    first = rows[1].split(",")[0]
+    again = fit_many(targets, out=out, client=client, **FAST_FIT).set_index("name")
+    assert again.loc[first, "status"] == "done earlier"
+    # the other fit was cancelled (or, if its worker had started it, finished on its own)
+    assert set(again["status"]) <= {"done", "done earlier"} and len(again) == 2
