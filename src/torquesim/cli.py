@@ -271,21 +271,30 @@ def compare(model_path, steps, repeats, out_dir, vary, quiet):
                "work_precision.png, time_constants.png, manifest.json")
 
 
-def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float, ...]]:
-    """``NAME=V`` (count 1) or ``NAME=LO,HI`` (count 2) options as a dict."""
+def _parse_pairs(values, option: str, example: str) -> dict[str, str]:
+    """``KEY=VALUE`` options as a dict of strings."""
     out = {}
     for text in values:
-        name, _, rest = text.partition("=")
+        key, eq, value = text.partition("=")
+        if not eq or not key.strip() or not value.strip():
+            raise ModelError(option, f"{text!r}: allowed KEY=VALUE, e.g. {example}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float, ...]]:
+    """``NAME=V`` (count 1) or ``NAME=LO,HI`` (count 2) options as a dict."""
+    shape, example = (("NAME=VALUE", "flexor.ramp1.delay=0.05") if count == 1
+                      else ("NAME=LOW,HIGH", "flexor.ramp1.delay=0,0.5"))
+    out = {}
+    for name, text in _parse_pairs(values, option, example).items():
         try:
-            numbers = tuple(float(v) for v in rest.split(","))
+            numbers = tuple(float(v) for v in text.split(","))
         except ValueError:
             numbers = ()
-        if not name or len(numbers) != count:
-            shape = "NAME=VALUE" if count == 1 else "NAME=LOW,HIGH"
-            raise ModelError(option, f"{text!r}: allowed {shape}, e.g. "
-                             + ("flexor.ramp1.delay=0.05" if count == 1
-                                else "flexor.ramp1.delay=0,0.5"))
-        out[name.strip()] = numbers
+        if len(numbers) != count:
+            raise ModelError(option, f"{name}={text!r}: allowed {shape}, e.g. {example}")
+        out[name] = numbers
     return out
 
 
@@ -317,17 +326,6 @@ def _search_options(fn):
     for option in reversed(_SEARCH_OPTIONS):
         fn = option(fn)
     return fn
-
-
-def _parse_pairs(values, option: str, example: str) -> dict[str, str]:
-    """``KEY=VALUE`` options as a dict of strings."""
-    out = {}
-    for text in values:
-        key, eq, value = text.partition("=")
-        if not eq or not key.strip() or not value.strip():
-            raise ModelError(option, f"{text!r}: allowed KEY=VALUE, e.g. {example}")
-        out[key.strip()] = value.strip()
-    return out
 
 
 @cli.command()
@@ -538,10 +536,16 @@ def _engine_options(fn):
 
 
 def _batch_progress(quiet: bool, label: str):
+    """A :class:`Progress` and the ``progress(done, total)`` callback of batch work: the
+    bar on a terminal, a line per finished task otherwise."""
     reporter = Progress(quiet)
-    return reporter, (lambda done, total: (reporter.step(done, total, label),
-                                           None if reporter.bars or quiet else
-                                           reporter.say(f"{label} {done}/{total}")))
+
+    def progress(done: int, total: int) -> None:
+        reporter.step(done, total, label)
+        if not reporter.bars:
+            reporter.say(f"{label} {done}/{total}")
+
+    return reporter, progress
 
 
 @batch.command("fit")

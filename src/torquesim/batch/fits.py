@@ -122,15 +122,19 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str) -> dict:
         summary = summarise(problem, outcome, search)
         write_outputs(out, problem, outcome, summary)
         (out / FINGERPRINT_FILE).write_text(key + "\n")
-        row.update(status="done", rms_deg=summary["rms_error_deg"],
-                   max_deg=summary["max_error_deg"],
-                   reference_rms_deg=summary["reference_rms_error_deg"],
-                   simulations=summary["simulations"], error="")
+        row.update(_summary_figures(summary), status="done", error="")
     except (ModelError, SimulationError, OSError) as exc:
         row.update(status="failed", error=str(exc).splitlines()[0] if str(exc) else
                    type(exc).__name__)
     row["wall_time_s"] = time.perf_counter() - start
     return row
+
+
+def _summary_figures(summary: dict) -> dict:
+    """The batch table's figures of one fit summary."""
+    return {"rms_deg": summary["rms_error_deg"], "max_deg": summary["max_error_deg"],
+            "reference_rms_deg": summary["reference_rms_error_deg"],
+            "simulations": summary["simulations"], "wall_time_s": summary["wall_time_s"]}
 
 
 def _finished_row(job: FitJob, folder: Path, key: str) -> dict | None:
@@ -142,11 +146,7 @@ def _finished_row(job: FitJob, folder: Path, key: str) -> dict | None:
     except (OSError, ValueError):
         return None
     return {"name": job.name, "target": job.target, "model": job.model,
-            "status": "done earlier", "rms_deg": summary["rms_error_deg"],
-            "max_deg": summary["max_error_deg"],
-            "reference_rms_deg": summary["reference_rms_error_deg"],
-            "simulations": summary["simulations"], "wall_time_s": summary["wall_time_s"],
-            "worker": "", "error": ""}
+            "status": "done earlier", "worker": "", "error": "", **_summary_figures(summary)}
 
 
 def fit_many(targets=(), *, out, model: str = "builtin:elbow-curl", manifest=None,

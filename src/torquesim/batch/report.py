@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.atomic import write_atomic, write_text_atomic
+from ..io.tables import write_table
 from ..study.page import image, page, settings_table, table
 
 PERCENTILES = (5, 25, 50, 75, 95)
@@ -75,7 +76,7 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> 
             for p, row in zip(PERCENTILES, np.percentile(finished[:, j], PERCENTILES, axis=0),
                               strict=True):
                 bands[f"{joint.name}_p{p}_deg"] = row
-    write_text_atomic(out / "sweep_percentiles.csv", _csv(bands))
+    write_table(out / "sweep_percentiles.csv", bands)
     figure = plot_bands(chain, histories)
     png_path = out / "sweep.png"
     save_figure(figure, png_path)
@@ -101,13 +102,6 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> 
             "<h2>Settings</h2>", settings_table(settings)]
     write_text_atomic(out / "sweep.html", page(f"torquesim sweep: {chain.name}", body))
     write_text_atomic(out / "sweep_settings.json", json.dumps(settings, indent=2) + "\n")
-
-
-def _csv(columns: dict) -> str:
-    names = list(columns)
-    rows = zip(*(np.asarray(columns[n]) for n in names), strict=True)
-    return ",".join(names) + "\n" + "".join(",".join(repr(float(v)) for v in r) + "\n"
-                                            for r in rows)
 
 
 #: The columns of batch.csv.

@@ -14,7 +14,6 @@ from .. import __version__
 from ..io.atomic import write_text_atomic
 from ..io.model_file import save_model
 from ..io.tables import write_table
-from ..model.activation import activation
 from ..solvers.simulate import simulate
 from .fit import FitOutcome, SearchSettings
 from .objective import FAILED_SCORE
@@ -113,10 +112,9 @@ def motion_columns(problem: FitProblem, summary: dict, units: str) -> dict[str, 
                                                             fitted.q[:, j]))
         columns[f"{joint.name}_reference"] = convert(np.interp(elapsed, reference.time,
                                                                reference.q[:, j]))
-    packed = fitted.model.pack(problem.levels)
-    for k, unit in enumerate(fitted.model.units):
-        columns[f"activation_{unit.name}"] = np.array(
-            [activation(t, packed.activations[k]) for t in elapsed])
+    for unit, level in zip(fitted.model.units, problem.activations(summary["_x"]),
+                           strict=True):
+        columns[f"activation_{unit.name}"] = level
     return columns
 
 

@@ -180,13 +180,16 @@ class FitProblem:
                                    for j, w in zip(self.target.joints, self.weights,
                                                    strict=True))))
 
+    def activations(self, x) -> np.ndarray:
+        """Every unit's activation (units × target samples) under the parameter vector
+        ``x``."""
+        packed = self.model_for(x).pack(self.levels).activations
+        return np.array([[activation(t, row) for t in self.times] for row in packed])
+
     def mean_activations(self, x) -> dict[str, float]:
         """Each unit's mean activation over the target samples."""
-        model = self.model_for(x)
-        packed = model.pack(self.levels)
-        return {u.name: float(np.mean([activation(t, packed.activations[k]) for t in
-                                       self.times])) for k, u in enumerate(model.units)}
-
+        return dict(zip(self.space.units, np.mean(self.activations(x), axis=1).tolist(),
+                        strict=True))
 
 def _with_angle(joint, angle: float):
     return replace(joint, initial_angle=angle)
