@@ -96,7 +96,7 @@ def bench_sweep(clients: dict, samples: int) -> None:
         overhead = (wall * n / tasks - in_process) / in_process
         print(f"   {n} worker(s): {wall:.1f} s, {rates[n]:.0f} simulations/s "
               f"({rates[n] / n:.0f} per worker, {60 * rates[n]:.0f} per minute); "
-              f"{int((table.guard == 'ok').sum())} ok; time per chunk vs in-process "
+              f"{int((table.accuracy == 'ok').sum())} ok; time per chunk vs in-process "
               f"{overhead * 100:+.1f} %")
         trips = []
         for _ in range(20):

@@ -76,9 +76,10 @@ def cli():
                    ".manifest.json beside it.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Write a figure of angle, torques and activations (.png, .pdf, .svg).")
-@click.option("--tolerance", type=click.FloatRange(0.0, 180.0), default=0.5, show_default=True,
-              help="Fixed-step methods: estimate the max angle error by step halving (two more "
-                   "runs' work) and warn above this many degrees; 0 turns the estimate off.")
+@click.option("--tolerance", type=float, default=0.5, show_default=True,
+              help="Fixed-step methods: estimate the max angle error against a run at twice "
+                   "the step (half a run's work; at half the step when that is above the "
+                   "tolerance) and warn above this many degrees; 0 turns the estimate off.")
 def simulate(model_path, method, step, duration, out_path, plot_path, tolerance):
     """Simulate the model and print a summary (or write --out / --plot)."""
     from .io.model_file import load_model
@@ -88,8 +89,8 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
     model = load_model(model_path)
     fixed = method != "reference"
-    result = run(model, method, step, duration=duration,
-                 tolerance=math.radians(tolerance) if fixed and tolerance > 0 else None)
+    check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
+    result = run(model, method, step, duration=duration, tolerance=check if fixed else None)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
     if out_path:
@@ -120,8 +121,8 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
     ]
     estimate = result.settings.get("estimated_error_rad")
     if estimate is not None:
-        lines.append(f"error est.    {math.degrees(estimate):.3g} deg max (step halving; "
-                     f"tolerance {tolerance:g} deg)")
+        lines.append(f"error est.    {math.degrees(estimate):.3g} deg max "
+                     f"({result.settings['error_estimate']}; tolerance {tolerance:g} deg)")
     report = result.stability
     if report is not None:
         limit = ("muscles implicit, no step limit from tau" if math.isinf(report.limit)
@@ -213,8 +214,10 @@ def _parse_steps(text: str) -> tuple[float, ...]:
               help="Model TOML file or builtin:NAME preset.")
 @click.option("--steps", default="20,10,5,2,1,0.5,0.2,0.1,0.05", show_default=True,
               help="Fixed steps to try, in ms, comma-separated; each must divide the duration.")
-@click.option("--repeats", type=click.IntRange(1, 50), default=3, show_default=True,
-              help="Runs per setting; the median wall time is reported.")
+@click.option("--repeats", type=click.IntRange(1, 50), default=5, show_default=True,
+              help="Runs per setting, interleaved round-robin over all settings; the minimum "
+                   "wall time is reported with the spread (the ranking uses the modelled cost, "
+                   "which does not move with load).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="compare-out",
               show_default=True, help="Directory for results.csv, figures, report.html.")
 @click.option("--vary", metavar="NAME=V1,V2,...",
@@ -267,7 +270,7 @@ def compare(model_path, steps, repeats, out_dir, vary, quiet):
     reporter.close()
     names = list(dict.fromkeys(r["technique"] for r in rows))
     click.echo("\n".join(verdict_sentences(verdict(rows), names)))
-    click.echo(f"wrote {out_dir}/results.csv, report.html, convergence.png, "
+    click.echo(f"wrote {out_dir}/results.csv, verdict.csv, report.html, convergence.png, "
                "work_precision.png, time_constants.png, manifest.json")
 
 
@@ -611,9 +614,15 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
               help="Samples per Dask task.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="sweep-out",
               show_default=True)
+@click.option("--tolerance", type=float, default=0.5, show_default=True,
+              help="Each sample's max angle error is estimated (against a run at twice the "
+                   "step, half a run's work) and the sample marked inaccurate above this many "
+                   "degrees.")
+@click.option("--accept-inaccurate", is_flag=True,
+              help="Exit 0 even when some samples are inaccurate or unstable.")
 @_engine_options
 def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out_dir,
-                workers, scheduler, quiet):
+                tolerance, accept_inaccurate, workers, scheduler, quiet):
     """Simulate the model over parameter distributions; write sweep.csv (one row per
     sample), percentile bands (sweep.png, sweep_percentiles.csv), rank correlations and
     sweep.html. Finished chunks are kept in OUT/chunks and skipped on a rerun."""
@@ -623,19 +632,36 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
     try:
         table, _ = sweep(model_path, vary, samples=samples, seed=seed, sobol=sobol,
                          method=method, step=step, out=out_dir, chunk=chunk, workers=workers,
-                         scheduler=scheduler, progress=progress)
+                         scheduler=scheduler, progress=progress,
+                         tolerance=_tolerance_rad(tolerance, "--tolerance"))
     except KeyboardInterrupt:
         reporter.close()
         click.echo(f"interrupted: finished chunks are in {out_dir}/chunks; run the same "
                    "command again to continue", err=True)
         return 130
     reporter.close()
-    failed = int((table["guard"] == "failed").sum())
-    click.echo(f"{len(table)} samples ({failed} failed, "
-               f"{int((table['guard'] == 'exceeded').sum())} beyond the stability limit); "
-               f"wrote {out_dir}/sweep.csv, sweep.png, sweep_percentiles.csv, "
+    counts = table["accuracy"].value_counts().to_dict()
+    failed = counts.get("failed", 0)
+    doubtful = counts.get("inaccurate", 0) + counts.get("unstable", 0)
+    click.echo(f"{len(table)} samples: {counts.get('ok', 0)} accurate, "
+               f"{counts.get('inaccurate', 0)} inaccurate (estimated error above "
+               f"{tolerance:g}°), {counts.get('unstable', 0)} beyond the stability limit, "
+               f"{failed} failed; wrote {out_dir}/sweep.csv, sweep.png, sweep_percentiles.csv, "
                "rank_correlations.csv, sweep.html")
+    if doubtful and not accept_inaccurate:
+        worst = table.loc[table["accuracy"].isin(["inaccurate", "unstable"]), "error"].iloc[0]
+        click.echo(f"error: {doubtful} of {len(table)} samples are inaccurate or unstable "
+                   f"(e.g. {worst.split(' Also: ')[0]}); use a smaller --step or --method imex, "
+                   "or --accept-inaccurate to accept them", err=True)
+        return 1
     return 1 if failed else 0
+
+
+def _tolerance_rad(degrees: float, option: str) -> float:
+    """A tolerance option in degrees, checked, in radians."""
+    from .errors import check_range
+
+    return math.radians(check_range(option, degrees, 0.0, 180.0, low_open=True, unit="deg"))
 
 
 def main(argv=None) -> int:

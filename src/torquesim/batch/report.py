@@ -21,7 +21,7 @@ def rank_correlations(frame, parameters, outcomes) -> dict[str, dict[str, float]
     that finished (parameter → outcome → ρ; NaN where an outcome does not vary)."""
     from scipy.stats import spearmanr
 
-    ok = frame["guard"] != "failed"
+    ok = frame["accuracy"] == "ok"
     out = {}
     for p in parameters:
         out[p] = {}
@@ -81,17 +81,20 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> 
     png_path = out / "sweep.png"
     save_figure(figure, png_path)
     parameters = [d.path for d in distributions]
-    outcomes = [c for c in outcome_columns(chain) if c not in ("guard", "error")]
+    outcomes = [c for c in outcome_columns(chain)
+                if c not in ("estimated_error_deg", "accuracy", "error")]
     rho = rank_correlations(frame, parameters, outcomes)
     rows = [[p, *(rho[p][o] for o in outcomes)] for p in parameters]
     write_text_atomic(out / "rank_correlations.csv",
                       ",".join(["parameter", *outcomes]) + "\n"
                       + "".join(",".join([r[0], *(repr(v) for v in r[1:])]) + "\n"
                                 for r in rows))
-    counts = frame["guard"].value_counts().to_dict()
-    body = [f"<p>{len(frame)} samples: {counts.get('ok', 0)} ok, "
-            f"{counts.get('exceeded', 0)} beyond the RK4 stability limit, "
-            f"{counts.get('failed', 0)} failed (their errors are in sweep.csv).</p>",
+    counts = frame["accuracy"].value_counts().to_dict()
+    body = [f"<p>{len(frame)} samples: {counts.get('ok', 0)} accurate (estimated max angle "
+            f"error within the tolerance), {counts.get('inaccurate', 0)} inaccurate, "
+            f"{counts.get('unstable', 0)} beyond the RK4 stability limit, "
+            f"{counts.get('failed', 0)} failed (their errors and warnings are in sweep.csv). "
+            "Rank correlations use the accurate samples only.</p>",
             image(png_path.read_bytes(), "percentile bands"),
             "<h2>Spearman rank correlation of each parameter with each outcome</h2>",
             table(["parameter", *outcomes], rows),

@@ -20,10 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError, SimulationError, check_range
 from ..fitting.parameters import unit_aliases
 from ..model.chain import ChainModel, as_chain
 from ..model.torque_generator import TorqueGeneratorUnit
+from ..solvers.simulate import DEFAULT_TOLERANCE
 
 DISTRIBUTIONS = ("uniform", "normal", "lognormal", "grid")
 #: Points of each joint's angle history kept per sample (for the percentile bands).
@@ -160,21 +161,30 @@ def outcome_columns(model: ChainModel) -> list[str]:
     for joint in model.joints:
         out += [f"peak_{joint.name}_deg", f"peak_{joint.name}_time_s",
                 f"final_{joint.name}_deg"]
-    return out + ["max_unit_torque_nm", "guard", "error"]
+    return out + ["max_unit_torque_nm", "estimated_error_deg", "accuracy", "error"]
+
+
+#: A sweep row's ``accuracy``: ``ok``; ``unstable`` (beyond the RK4 stability limit);
+#: ``inaccurate`` (estimated max angle error above the tolerance, or a step too coarse for the
+#: activation); ``failed`` (no result; the error says why).
+ACCURACY_VERDICTS = ("ok", "unstable", "inaccurate", "failed")
 
 
 def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, method: str,
-                   step: float) -> dict:
+                   step: float, tolerance: float = DEFAULT_TOLERANCE) -> dict:
     """Simulate every row of ``values`` (a Dask task). Returns the outcome arrays, the angle
-    histories (samples × joints × :data:`HISTORY_POINTS`, deg, NaN for failed samples) and
-    the worker. A failing sample fills its own row with its one-line error."""
+    histories (samples × joints × :data:`HISTORY_POINTS`, deg, NaN for failed samples), each
+    row's accuracy verdict (:data:`ACCURACY_VERDICTS`; every run's max angle error is estimated
+    against a run at twice the step, :func:`~torquesim.solvers.simulate.simulate`'s default
+    check, within ``tolerance`` rad) and the worker. A failing sample fills its own row with
+    its one-line error."""
     from ..solvers.simulate import simulate
     from .engine import single_threaded, worker_name
 
     single_threaded()
     n = base.n_joints
     m = values.shape[0]
-    numbers = np.full((m, 3 * n + 1), np.nan)
+    numbers = np.full((m, 3 * n + 2), np.nan)
     guard = ["failed"] * m
     errors = [""] * m
     grid = np.linspace(0.0, base.duration, HISTORY_POINTS)
@@ -184,7 +194,8 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
             model = base
             for path, value in zip(paths, row, strict=True):
                 model = set_parameter(model, path, value)
-            result = simulate(model, method, step, check=False, advise=False)
+            result = simulate(model, method, step, check=False, advise=False,
+                              tolerance=tolerance)
             if not result.success:
                 raise SimulationError(result.message)
         except (ModelError, SimulationError) as exc:
@@ -195,10 +206,15 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
             peak = int(np.argmax(q[:, j]))
             numbers[i, 3 * j: 3 * j + 3] = q[peak, j], result.time[peak], q[-1, j]
             histories[i, j] = np.interp(grid, result.time, q[:, j])
-        numbers[i, -1] = max_unit_torque(model, result.states)
-        exceeded = result.stability is not None and result.stability.exceeded
-        guard[i] = "exceeded" if exceeded else "ok"
-        errors[i] = result.message if exceeded else ""
+        numbers[i, -2] = max_unit_torque(model, result.states)
+        numbers[i, -1] = math.degrees(result.settings.get("estimated_error_rad", math.nan))
+        if result.stability is not None and result.stability.exceeded:
+            guard[i] = "unstable"
+        elif result.message:
+            guard[i] = "inaccurate"
+        else:
+            guard[i] = "ok"
+        errors[i] = result.message
     return {"numbers": numbers, "guard": guard, "errors": errors, "histories": histories,
             "worker": worker_name()}
 
@@ -215,26 +231,28 @@ def max_unit_torque(model: ChainModel, states: np.ndarray) -> float:
     return worst
 
 
-def fingerprint(model_toml: str, values: np.ndarray, method: str, step: float, paths) -> str:
+def fingerprint(model_toml: str, values: np.ndarray, method: str, step: float, paths,
+                tolerance: float = DEFAULT_TOLERANCE) -> str:
     """Hash of what a finished chunk is valid for."""
     h = hashlib.sha256()
     h.update(model_toml.encode())
     h.update(np.ascontiguousarray(values).tobytes())
-    h.update(repr((method, step, list(paths))).encode())
+    h.update(repr((method, step, list(paths), tolerance, "accuracy-verdict")).encode())
     return h.hexdigest()[:16]
 
 
 def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = False,
           method: str = "imex", step: float = 5e-3, out=None, chunk: int = DEFAULT_CHUNK,
           client=None, workers: int | None = None, scheduler: str | None = None,
-          progress=None):
+          progress=None, tolerance: float = DEFAULT_TOLERANCE):
     """Simulate ``model`` (a chain, a file or ``builtin:NAME``) over the parameter
     distributions ``vary`` (``PATH=KIND(...)`` strings or :class:`Distribution`) on Dask.
 
     Returns (table, histories): a pandas DataFrame with one row per sample (its parameter
     values, each joint's peak angle and its time, final angle, the largest unit torque, the
-    stability guard's verdict and any error) and the angle histories (samples × joints ×
-    :data:`HISTORY_POINTS`, deg). With ``out``, finished chunks are kept in
+    estimated max angle error and the accuracy verdict, :data:`ACCURACY_VERDICTS`, with
+    ``tolerance`` rad, default 0.5°, and any error or warning) and the angle histories
+    (samples × joints × :data:`HISTORY_POINTS`, deg). With ``out``, finished chunks are kept in
     ``out/chunks/`` as they arrive (a rerun with the same settings skips them) and the
     table, percentile figure and rank correlations are written there.
     """
@@ -247,6 +265,7 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
         raise ModelError("--samples", f"{samples}; allowed 1 to 10000000")
     if not 1 <= chunk <= 1_000_000:
         raise ModelError("--chunk", f"{chunk}; allowed 1 to 1000000")
+    check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
     chain = as_chain(load_model(model) if isinstance(model, str | Path) else model)
     distributions = [d if isinstance(d, Distribution) else parse_vary(d) for d in vary]
     if not distributions:
@@ -264,7 +283,8 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
         chunk_dir.mkdir(parents=True, exist_ok=True)
         for k, s in enumerate(starts):
             kept = _load_chunk(chunk_dir / f"chunk_{k:05d}.npz",
-                               fingerprint(model_toml, values[s:s + chunk], method, step, paths))
+                               fingerprint(model_toml, values[s:s + chunk], method, step, paths,
+                                           tolerance))
             if kept is not None:
                 results[k] = kept
     todo = [k for k in range(len(starts)) if k not in results]
@@ -275,13 +295,14 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
         if chunk_dir is not None:
             _save_chunk(chunk_dir / f"chunk_{k:05d}.npz", result,
                         fingerprint(model_toml, values[starts[k]:starts[k] + chunk], method,
-                                    step, paths))
+                                    step, paths, tolerance))
 
     if todo:
         with connect(client, workers=workers, scheduler=scheduler) as dask_client:
             run_tasks(dask_client, [(simulate_chunk, (chain, paths,
                                                       values[starts[k]:starts[k] + chunk],
-                                                      method, step)) for k in todo],
+                                                      method, step, tolerance))
+                                      for k in todo],
                       keep, progress=progress)
     table, histories = _assemble(chain, paths, values, [results[k] for k in range(len(starts))])
     if out is not None:
@@ -301,7 +322,7 @@ def _assemble(chain, paths, values, parts):
     columns = outcome_columns(chain)
     for i, name in enumerate(columns[:-2]):
         table[name] = numbers[:, i]
-    table["guard"] = [g for p in parts for g in p["guard"]]
+    table["accuracy"] = [g for p in parts for g in p["guard"]]
     table["error"] = [e for p in parts for e in p["errors"]]
     table["worker"] = [p["worker"] for p in parts for _ in p["guard"]]
     table.insert(0, "sample", np.arange(len(table)))

@@ -43,9 +43,15 @@ from .rates import (
 from .sdirk import unit_implicit_ce_velocity
 
 # Indices of the stats array returned by the loops.
+# NEWTON_ITERATIONS: residual evaluations of the implicit unit equations (each one a Newton
+# iteration with its scalar linear solve, or the bracket check); IMPLICIT_SOLVES: implicit stage
+# equations solved. COUPLING_*: the coupling-error indicator of the partitioned loop (see
+# rk4_partitioned): Σ over steps of max_j |δτ_j|·h (N·m·s), its largest term's |δτ| (N·m) and
+# time (s), and Σ over steps of max_j |δq_j| (rad).
 STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
-    UNIT_SOLVES = range(9)
-STATS_SIZE = 9
+    NEWTON_ITERATIONS, IMPLICIT_SOLVES, COUPLING_TORQUE, COUPLING_TORQUE_MAX, COUPLING_TIME, \
+    COUPLING_ANGLE = range(14)
+STATS_SIZE = 14
 # Status codes. DIVERGED: the state left the physically possible range (a joint more than a
 # full turn beyond its end stops, or faster than its speed limit, ChainModel.speed_limits).
 OK, NON_FINITE, DIVERGED = 0, 1, 2
@@ -288,7 +294,8 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
     stability limit. Result into y_new[2n:].
 
     The explicit CE velocities at the step start (b[_OMEGA]) seed Newton's method. Each unit
-    residual evaluation is counted in ``stats[UNIT_SOLVES]``. The units are independent given
+    residual evaluation is counted in ``stats[NEWTON_ITERATIONS]``, each stage equation in
+    ``stats[IMPLICIT_SOLVES]``. The units are independent given
     q(s), so each is advanced over the whole step in turn.
     """
     hs = h / substeps
@@ -321,7 +328,8 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
             x = x2 + d * (gh * w2)
             guess = w2
         y_new[c + u] = x
-    stats[UNIT_SOLVES] += solves
+    stats[NEWTON_ITERATIONS] += solves
+    stats[IMPLICIT_SOLVES] += 2 * substeps * nu
 
 
 @njit(cache=True, error_model="numpy")
@@ -429,6 +437,8 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                     b[_TORQUE_SLOPE, j] = 0.0
             for i in range(size):
                 y1[i] = y[i]
+            torque_jump = 0.0
+            angle_jump = 0.0
             for sweep in range(sweeps):
                 for i in range(size):
                     b[_OLD, i] = y1[i]
@@ -452,6 +462,15 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                 stats[SWEEPS] += 1
                 # Later sweeps see the other part's end-of-step values (waveform relaxation).
                 joint_muscle_torques(y1, y1, c, units, nu, b[_TORQUE], n)
+                # Coupling-error indicator (no extra evaluation): the jump between the joint
+                # torque the body integrated with at the step end and the torque the muscles
+                # give there, and between the angle the muscles integrated with and the body's.
+                torque_jump = 0.0
+                angle_jump = 0.0
+                for j in range(n):
+                    torque_jump = max(torque_jump, abs(b[_TORQUE0, j] + b[_TORQUE_SLOPE, j]
+                                                       - b[_TORQUE, j]))
+                    angle_jump = max(angle_jump, abs(y[j] + b[_Q_SLOPE, j] - y1[j]))
                 for j in range(n):
                     b[_Q_SLOPE, j] = y1[j] - y[j]
                     b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
@@ -462,6 +481,11 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                         change = max(change, abs(y1[i] - b[_OLD, i]) * scale)
                     if change <= tol:
                         break
+            stats[COUPLING_TORQUE] += torque_jump * h
+            stats[COUPLING_ANGLE] += angle_jump
+            if torque_jump > stats[COUPLING_TORQUE_MAX]:
+                stats[COUPLING_TORQUE_MAX] = torque_jump
+                stats[COUPLING_TIME] = t + h
         for j in range(n):
             q_prev[j] = y[j]
             torque_prev[j] = b[_TORQUE0, j]

@@ -54,12 +54,23 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
 
 @dataclass(frozen=True)
 class RunCost:
-    """What a run cost: steps, right-hand-side evaluations per part, wall time (s)."""
+    """What a run cost: deterministic work counts and the wall time (s).
+
+    ``rhs_body``: evaluations of the body part's right-hand side (joint accelerations);
+    ``rhs_muscle``: explicit evaluations of the muscle part (every unit's CE velocity);
+    ``newton_iterations``: residual evaluations of the implicit unit equations (each a Newton
+    iteration with its scalar linear solve; IMEX); ``implicit_solves``: implicit stage
+    equations solved. For SciPy's solvers ``rhs_body`` = ``rhs_muscle`` = whole-system calls,
+    ``jacobians`` and ``lu_decompositions`` their Jacobians and LU factorisations."""
 
     steps: int
     rhs_body: int
     rhs_muscle: int
     wall_time: float
+    newton_iterations: int = 0
+    implicit_solves: int = 0
+    jacobians: int = 0
+    lu_decompositions: int = 0
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,9 @@ DEFAULT_STEP = 1.0e-4
 REFERENCE_RTOL = 1.0e-10
 REFERENCE_ATOL = 1.0e-12
 DEFAULT_OUTPUT_STEP = 1.0e-3
+#: Default accuracy check of fixed-step runs in :func:`simulate`: warn when the estimated max
+#: angle error exceeds this (rad; 0.5°).
+DEFAULT_TOLERANCE = math.radians(0.5)
 
 
 def step_count(duration: float, step: float, field: str = "step") -> int:
@@ -53,7 +56,7 @@ def simulate(
     initial_state=None,
     check: bool = True,
     advise: bool = True,
-    tolerance: float | None = None,
+    tolerance: float | None = DEFAULT_TOLERANCE,
 ) -> SimulationResult:
     """Simulate ``model`` (default: the built-in curl) with one solution technique.
 
@@ -83,11 +86,13 @@ def simulate(
         Fixed-step runs that fail or break the stability limit: find the step to recommend by
         running it (:func:`verified_step`), so the advice holds when followed. Default True;
         studies that try many steps on purpose turn it off.
-    tolerance : float, optional
-        Fixed-step runs: estimate the max angle error by step halving (the run repeated at h/2;
-        error ≈ max|q_h − q_h/2|·2^p/(2^p − 1), p the technique's order,
-        :func:`nominal_order`) and warn when it exceeds ``tolerance`` (rad). It costs two more
-        runs' worth of work. The estimate is in ``result.settings["estimated_error_rad"]``.
+    tolerance : float or None
+        Fixed-step runs: estimate the max angle error by Richardson extrapolation against a
+        run at twice the step (half a run's work) and, when that exceeds the tolerance,
+        against a run at half the step (error ≈ max|q_h − q_h/2|·2^p/(2^p − 1), p the
+        technique's order, :func:`nominal_order`), and warn (``result.message``) when it
+        exceeds ``tolerance`` (rad). Default 0.5°; None turns the check off. The estimate is
+        in ``result.settings["estimated_error_rad"]``.
     """
     model = as_chain(default_model() if model is None else model)
     if not isinstance(method, str):
@@ -108,12 +113,13 @@ def simulate(
                 raise ModelError("coupling.muscle_solver", "method 'imex' needs an implicit "
                                  "muscle solver; allowed: sdirk2")
         coupling = coupling or Coupling()
+        if tolerance is not None:
+            check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
         result = _fixed_step(model, packed, y0, method, step, coupling)
         if advise and (not result.success or result.stability.exceeded):
             result = _with_advice(result, verified_step(model, packed, y0, method, step,
                                                         coupling))
         if tolerance is not None and result.success:
-            check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
             result = _with_error_estimate(result, model, packed, y0, method, coupling,
                                           tolerance)
     elif method == "reference" or method.startswith("scipy:"):
@@ -177,10 +183,15 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
         message = stability.message()
     else:
         message = _resolution_warning(model, step)
-    # An implicit unit solve evaluates one unit: two of them count as one muscle evaluation.
-    cost = RunCost(done, int(stats[fs.NFEV_BODY]),
-                   int(stats[fs.NFEV_MUSCLE] + math.ceil(stats[fs.UNIT_SOLVES] / 2)), wall)
+    cost = RunCost(done, int(stats[fs.NFEV_BODY]), int(stats[fs.NFEV_MUSCLE]), wall,
+                   newton_iterations=int(stats[fs.NEWTON_ITERATIONS]),
+                   implicit_solves=int(stats[fs.IMPLICIT_SOLVES]))
     settings = {"step": step, "steps": n}
+    if method == "partitioned":
+        settings["coupling_jump"] = (float(stats[fs.COUPLING_TORQUE]),
+                                     float(stats[fs.COUPLING_TORQUE_MAX]),
+                                     float(stats[fs.COUPLING_TIME]),
+                                     float(stats[fs.COUPLING_ANGLE]))
     if method == "partitioned":
         settings["coupling"] = coupling.__dict__.copy()
     return SimulationResult(model, packed, times, out[: done + 1], label, float(step), cost,
@@ -267,13 +278,39 @@ def nominal_order(method: str, coupling: Coupling) -> int:
     return min(order, 2) if coupling.implicit_muscles else order
 
 
+def _doubling_estimate(result, model, packed, y0, method, coupling, p) -> float | None:
+    """Max angle error of ``result`` estimated against a run at twice its step (Richardson:
+    max|q_h − q_2h|/(2^p − 1)); half a run's worth of work. None when the step count is odd,
+    the coarse run fails or breaks the stability limit (it then says nothing about this
+    run)."""
+    n = int(result.settings["steps"])
+    if n % 2 or n < 4:
+        return None
+    coarse = _fixed_step(model, packed, y0, method, 2 * result.step, coupling)
+    if not coarse.success or coarse.stability.exceeded:
+        return None
+    return _max_difference(coarse, result) / (2**p - 1)
+
+
 def _with_error_estimate(result, model, packed, y0, method, coupling, tolerance):
-    """``result`` with the step-halving error estimate, and a warning above ``tolerance``."""
+    """``result`` with an estimate of its max angle error (rad) and a warning above
+    ``tolerance``.
+
+    First against a run at twice the step (half a run's work); when that estimate exceeds the
+    tolerance or cannot be made, against a run at half the step (two runs' work):
+    max|q_h − q_h/2|·2^p/(2^p − 1), which decides. p is the technique's order
+    (:func:`nominal_order`). A run within the tolerance thus costs 1.5 runs, a flagged one
+    3.5."""
     p = nominal_order(method, coupling)
-    half = _fixed_step(model, packed, y0, method, result.step / 2, coupling)
-    estimate = (_max_difference(result, half) * 2**p / (2**p - 1) if half.success
-                else math.inf)
-    settings = {**result.settings, "estimated_error_rad": estimate, "tolerance_rad": tolerance}
+    estimate = _doubling_estimate(result, model, packed, y0, method, coupling, p)
+    how = "step doubling"
+    if estimate is None or estimate > tolerance:
+        half = _fixed_step(model, packed, y0, method, result.step / 2, coupling)
+        estimate = (_max_difference(result, half) * 2**p / (2**p - 1) if half.success
+                    else math.inf)
+        how = "step halving"
+    settings = {**result.settings, "estimated_error_rad": estimate, "tolerance_rad": tolerance,
+                "error_estimate": how}
     message = result.message
     if estimate > tolerance:
         shrink = (tolerance / estimate) ** (1.0 / p) if math.isfinite(estimate) else 0.0
@@ -283,7 +320,9 @@ def _with_error_estimate(result, model, packed, y0, method, coupling, tolerance)
             advice = f"a step ≤ {result.step * shrink * 1e3:.3g} ms should meet it (order {p})"
         else:
             advice = "use a smaller step or method 'reference'"
-        warning = (f"estimated max angle error {math.degrees(estimate):.3g}° (step halving) "
+        if method == "partitioned" and not coupling.implicit_muscles:
+            advice += ", or method 'imex'"
+        warning = (f"estimated max angle error {math.degrees(estimate):.3g}° ({how}) "
                    f"exceeds the tolerance {math.degrees(tolerance):.3g}°: {advice}")
         message = f"{message} Also: {warning}" if message else warning
     return replace(result, settings=settings, message=message)
@@ -343,7 +382,9 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
     if not ok:
         message = (f"{label} (rtol {rtol:g}) failed at t = {solver.t:.6g} s: "
                    f"{message or 'stopped early'}")
-    cost = RunCost(steps, calls[0], calls[0], wall)
+    cost = RunCost(steps, calls[0], calls[0], wall,
+                   jacobians=int(getattr(solver, "njev", 0) or 0),
+                   lu_decompositions=int(getattr(solver, "nlu", 0) or 0))
     settings = {"rtol": rtol, "atol": atol, "solver": name, "output_step": output_step,
                 "njev": int(getattr(solver, "njev", 0)), "nlu": int(getattr(solver, "nlu", 0))}
     return SimulationResult(model, packed, grid[:filled], states[:filled], label, None, cost,

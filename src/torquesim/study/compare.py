@@ -15,6 +15,7 @@ from fractions import Fraction
 import numpy as np
 from scipy.stats import linregress
 
+from ..errors import ModelError
 from ..model.chain import ChainModel, as_chain
 from ..solvers import Coupling, simulate
 from ..solvers.coupling import IMEX
@@ -29,10 +30,34 @@ STABLE_ERROR_DEG = 1.0
 REFERENCE_RTOL, REFERENCE_ATOL = 1e-11, 1e-13
 GRID = 1e-3  # s, the reference output grid
 
-COLUMNS = ("technique", "h_s", "tolerance", "max_error_rad", "max_error_deg", "rms_error_rad",
-           "rms_error_deg", "peak_error_deg", "final_torque_error_nm", "stable",
-           "guard_exceeded", "max_step_over_tau", "rhs_body", "rhs_muscle", "steps",
-           "wall_time_s", "status")
+#: Each run is repeated this many times, round-robin over all runs (so that a change of machine
+#: load hits every technique alike); its wall time is the minimum.
+DEFAULT_REPEATS = 5
+#: The runs that calibrate the unit times of the fixed-step work (each fixed-step technique's
+#: run with the most work among those within 1° of the reference) are repeated this many times
+#: in all, interleaved: their minimum is then steady to a few per cent whatever the load.
+CALIBRATION_REPEATS = 15
+#: Runs whose modelled costs are within this factor of the cheapest are a tie: the verdict then
+#: names the technique listed first (the modelled cost's calibration is not finer than this).
+TIE_RATIO = 1.2
+
+COLUMNS = ("technique", "method", "h_s", "tolerance", "max_error_rad", "max_error_deg",
+           "rms_error_rad", "rms_error_deg", "peak_error_deg", "final_torque_error_nm", "stable",
+           "guard_exceeded", "max_step_over_tau", "steps", "rhs_body", "rhs_muscle",
+           "newton_iterations", "jacobians", "lu_decompositions", "calibration_run",
+           "modelled_cost_s",
+           "wall_time_s", "wall_time_median_s", "wall_time_max_s", "wall_times_s", "status")
+
+#: The work whose unit times are calibrated: (name, what it counts). Fixed-step runs count
+#: steps per kernel (the monolithic loop and the partitioned loop have their own per-step
+#: overhead), body and muscle evaluations and Newton iterations; SciPy runs count steps,
+#: right-hand-side calls and LU factorisations.
+FIXED_STEP_WORK = (("step.monolithic", lambda r: r["steps"] * (r["method"] == "monolithic")),
+                   ("step.partitioned", lambda r: r["steps"] * (r["method"] != "monolithic")),
+                   ("body", lambda r: r["rhs_body"]), ("muscle", lambda r: r["rhs_muscle"]),
+                   ("newton", lambda r: r["newton_iterations"]))
+ADAPTIVE_WORK = (("step", lambda r: r["steps"]), ("call", lambda r: r["rhs_body"]),
+                 ("lu", lambda r: r["lu_decompositions"]))
 
 
 @dataclass(frozen=True)
@@ -102,51 +127,143 @@ def _errors(result, reference) -> dict:
     return out
 
 
+def _wall_time(result) -> float:
+    """The kernel's own wall-time reading of a run, s (the study's default timer)."""
+    return result.cost.wall_time
+
+
 def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
-              techniques=None, repeats: int = 3, initial_state=None,
-              progress: Callable[[int, int, str], None] | None = None
-              ) -> tuple[list[dict], object]:
+              techniques=None, repeats: int = DEFAULT_REPEATS, initial_state=None,
+              progress: Callable[[int, int, str], None] | None = None,
+              timer: Callable[[object], float] = _wall_time) -> tuple[list[dict], object]:
     """Run every technique at every step/tolerance on ``model`` (any chain); return (rows,
     reference). Rows have :data:`COLUMNS` and the per-joint :func:`joint_error_columns`.
-    ``progress(done, total, label)`` is called after each run."""
+
+    Every run is made ``repeats`` times, round-robin over all runs (the first round gives the
+    errors and the work counts, which do not change between repeats); its wall time is the
+    minimum over the repeats, with the median, the maximum and every reading. ``timer(result)``
+    reads a run's wall time (default: the kernel's own reading; tests inject noise here).
+    ``modelled_cost_s`` is filled by :func:`calibrate`. ``progress(done, total, label)`` is
+    called after each run."""
     model = as_chain(model)
     columns = COLUMNS + joint_error_columns(model)
     techniques = default_techniques() if techniques is None else techniques
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ModelError("repeats", f"must be a whole number ≥ 1, got {repeats!r}")
     for h in steps:
         step_count(model.duration, h)
     reference = reference_solution(model, initial_state)
-    rows = []
     jobs = [(t, s) for t in techniques for s in (tolerances if t.adaptive else steps)]
-    for i, (tech, setting) in enumerate(jobs):
-        kwargs = dict(initial_state=initial_state, check=False, advise=False)
+    rows: list[dict] = []
+    times: list[list[float]] = [[] for _ in jobs]
+    total = repeats * len(jobs)
+    for round_ in range(repeats):
+        for i, (tech, setting) in enumerate(jobs):
+            kwargs = dict(initial_state=initial_state, check=False, advise=False,
+                          tolerance=None)
+            if tech.adaptive:
+                kwargs.update(rtol=setting, atol=setting * 1e-3, output_step=GRID)
+            else:
+                kwargs.update(step=setting, coupling=tech.coupling)
+            result = simulate(model, tech.method, **kwargs)
+            times[i].append(float(timer(result)))
+            if round_ == 0:
+                rows.append(_row(tech, setting, result, reference, model))
+            if progress:
+                what = f"tol {setting:g}" if tech.adaptive else f"h {setting * 1e3:g} ms"
+                progress(round_ * len(jobs) + i + 1, total, f"{tech.name} {what}")
+    calibration = _calibration_jobs(rows, jobs)
+    rounds = max(0, CALIBRATION_REPEATS - repeats)
+    for round_ in range(rounds):
+        for k, i in enumerate(calibration):
+            tech, setting = jobs[i]
+            result = simulate(model, tech.method, step=setting, coupling=tech.coupling,
+                              initial_state=initial_state, check=False, advise=False,
+                              tolerance=None)
+            times[i].append(float(timer(result)))
+            if progress:
+                progress(round_ * len(calibration) + k + 1, rounds * len(calibration),
+                         f"calibration {tech.name}")
+    for i, (row, readings) in enumerate(zip(rows, times, strict=True)):
+        row["calibration_run"] = i in calibration
+        row.update(wall_time_s=min(readings), wall_time_median_s=float(np.median(readings)),
+                   wall_time_max_s=max(readings), wall_times_s=tuple(readings))
+    calibrate(rows)
+    return [{c: row.get(c) for c in columns} for row in rows], reference
+
+
+def _calibration_jobs(rows: list[dict], jobs) -> list[int]:
+    """Indices of the runs that calibrate the fixed-step unit times: per fixed-step technique
+    its run with the most steps among those within 1° of the reference (or, if none is, its
+    run with the most steps)."""
+    picks = []
+    for tech in dict.fromkeys(t for t, _ in jobs):
         if tech.adaptive:
-            kwargs.update(rtol=setting, atol=setting * 1e-3, output_step=GRID)
-        else:
-            kwargs.update(step=setting, coupling=tech.coupling)
-        runs = [simulate(model, tech.method, **kwargs) for _ in range(repeats)]
-        result = runs[0]
-        row = {"technique": tech.name, "h_s": None if tech.adaptive else setting,
-               "tolerance": setting if tech.adaptive else None,
-               "rhs_body": result.cost.rhs_body, "rhs_muscle": result.cost.rhs_muscle,
-               "steps": result.cost.steps,
-               "wall_time_s": float(np.median([r.cost.wall_time for r in runs])),
-               "status": result.status,
-               "guard_exceeded": bool(result.stability and result.stability.exceeded),
-               "max_step_over_tau": (result.stability.max_step_ratio
-                                     if result.stability else None)}
-        if result.success:
-            row.update(_errors(result, reference))
-            row["stable"] = row["max_error_deg"] <= STABLE_ERROR_DEG
-        else:
-            row.update({k: math.inf for k in ("max_error_rad", "max_error_deg",
-                                              "rms_error_rad", "rms_error_deg",
-                                              *joint_error_columns(model))})
-            row.update(peak_error_deg=math.nan, final_torque_error_nm=math.nan, stable=False)
-        rows.append({c: row.get(c) for c in columns})
-        if progress:
-            what = f"tol {setting:g}" if tech.adaptive else f"h {setting * 1e3:g} ms"
-            progress(i + 1, len(jobs), f"{tech.name} {what}")
-    return rows, reference
+            continue
+        mine = [i for i, (t, _) in enumerate(jobs) if t is tech]
+        good = [i for i in mine if rows[i]["stable"] and not rows[i]["guard_exceeded"]]
+        picks.append(max(good or mine, key=lambda i: rows[i]["steps"]))
+    return picks
+
+
+def _row(tech: Technique, setting: float, result, reference, model) -> dict:
+    """A study row of one run: its settings, work counts, guard and errors."""
+    row = {"technique": tech.name, "method": tech.method,
+           "h_s": None if tech.adaptive else setting,
+           "tolerance": setting if tech.adaptive else None,
+           "steps": result.cost.steps, "rhs_body": result.cost.rhs_body,
+           "rhs_muscle": result.cost.rhs_muscle,
+           "newton_iterations": result.cost.newton_iterations,
+           "jacobians": result.cost.jacobians,
+           "lu_decompositions": result.cost.lu_decompositions,
+           "status": result.status,
+           "guard_exceeded": bool(result.stability and result.stability.exceeded),
+           "max_step_over_tau": (result.stability.max_step_ratio
+                                 if result.stability else None)}
+    if result.success:
+        row.update(_errors(result, reference))
+        row["stable"] = row["max_error_deg"] <= STABLE_ERROR_DEG
+    else:
+        row.update({k: math.inf for k in ("max_error_rad", "max_error_deg",
+                                          "rms_error_rad", "rms_error_deg",
+                                          *joint_error_columns(model))})
+        row.update(peak_error_deg=math.nan, final_torque_error_nm=math.nan, stable=False)
+    return row
+
+
+def calibrate(rows: list[dict]) -> dict[str, float]:
+    """Time of one unit of each kind of work, s, fitted in the same run to every run's minimum
+    wall time, and each row's ``modelled_cost_s`` = Σ count × time per unit.
+
+    Fixed-step runs: wall ≈ c_step,kernel·steps + c_body·(body evaluations) +
+    c_muscle·(muscle evaluations) + c_newton·(Newton iterations), the per-step overhead
+    separate for the monolithic and the partitioned loop (:data:`FIXED_STEP_WORK`); SciPy runs:
+    wall ≈ c_step·steps + c_call·calls + c_lu·(LU factorisations). Non-negative least squares
+    on the relative errors (every run weighs alike), over the rows marked ``calibration_run``
+    (:data:`CALIBRATION_REPEATS` readings each) where there are any. Returns the coefficients
+    by name (``fixed.body`` …)."""
+    from scipy.optimize import nnls
+
+    coefficients: dict[str, float] = {}
+    for kind, work, adaptive in (("fixed", FIXED_STEP_WORK, False),
+                                 ("scipy", ADAPTIVE_WORK, True)):
+        mine = [r for r in rows if (r["h_s"] is None) == adaptive and r.get("wall_time_s")]
+        if not mine:
+            continue
+        fit = [r for r in mine if r.get("calibration_run")] or mine
+        a = np.array([[float(count(r) or 0) for _, count in work] for r in fit])
+        wall = np.array([r["wall_time_s"] for r in fit])
+        used = np.any(a > 0.0, axis=0)
+        c = np.zeros(len(work))
+        scale = a[:, used].max(axis=0)
+        solution, _ = nnls(a[:, used] / scale / wall[:, None], np.ones(wall.size))
+        c[used] = solution / scale
+        coefficients.update({f"{kind}.{name}": float(v)
+                             for (name, _), v in zip(work, c, strict=True)})
+        for r in mine:
+            r["modelled_cost_s"] = float(np.array([float(count(r) or 0) for _, count in work])
+                                         @ c)
+    return coefficients
 
 
 def observed_order(rows: list[dict], technique: str, floor: float = 1e-11,
@@ -195,25 +312,82 @@ def stability_limit(rows: list[dict], technique: str) -> float | None:
     return limit
 
 
-def verdict(rows: list[dict], targets=ACCURACY_TARGETS_DEG,
-            cost: str = "wall_time_s") -> list[dict]:
+def _setting(row) -> str:
+    return f"h = {row['h_s'] * 1e3:g} ms" if row["h_s"] else f"rtol = {row['tolerance']:g}"
+
+
+def verdict(rows: list[dict], targets=ACCURACY_TARGETS_DEG, cost: str = "modelled_cost_s",
+            tie: float = TIE_RATIO) -> list[dict]:
     """For each accuracy target (max angle error, degrees): the cheapest run of every technique
-    that meets it, the winner and how many times cheaper it is than each other technique."""
+    that meets it (within the stability guard), ranked by ``cost`` (default the modelled cost,
+    which does not move with machine load).
+
+    Runs within the factor ``tie`` of the cheapest are a tie, resolved by the order in which
+    the techniques appear in ``rows`` (the abstract's first), so that the verdict does not
+    depend on timing noise. Each entry: ``target_deg``, ``winner``, ``runner_up``, ``ranking``,
+    ``ratios`` (cost of each technique's best run over the winner's), ``tie`` (the runner-up is
+    within ``tie``), ``wall_ratio`` (ratio of minimum wall times, runner-up over winner) and
+    ``wall_ratio_range`` (its lowest and highest over the interleaved repeats)."""
+    order = {name: i for i, name in enumerate(dict.fromkeys(r["technique"] for r in rows))}
     out = []
     for target in targets:
         best: dict[str, dict] = {}
         for r in rows:
             if r["status"] != "success" or r["max_error_deg"] > target or r["guard_exceeded"]:
                 continue
-            if r["technique"] not in best or r[cost] < best[r["technique"]][cost]:
+            mine = best.get(r["technique"])
+            if mine is None or (r[cost], -(r["h_s"] or r["tolerance"])) < \
+                    (mine[cost], -(mine["h_s"] or mine["tolerance"])):
                 best[r["technique"]] = r
-        ranking = sorted(best.values(), key=lambda r: r[cost])
-        entry = {"target_deg": target, "ranking": ranking, "winner": None, "ratios": {}}
+        ranking = sorted(best.values(), key=lambda r: (r[cost], order[r["technique"]]))
         if ranking:
-            win = ranking[0]
-            entry["winner"] = win
+            cheapest = ranking[0][cost]
+            tied = [r for r in ranking if r[cost] <= tie * cheapest]
+            first = min(tied, key=lambda r: order[r["technique"]])
+            ranking = [first, *(r for r in ranking if r is not first)]
+        entry = {"target_deg": target, "ranking": ranking, "winner": None, "runner_up": None,
+                 "ratios": {}, "tie": False, "wall_ratio": None, "wall_ratio_range": None}
+        if ranking:
+            win = entry["winner"] = ranking[0]
             entry["ratios"] = {r["technique"]: r[cost] / win[cost] for r in ranking[1:]}
+        if len(ranking) > 1:
+            second = entry["runner_up"] = ranking[1]
+            entry["tie"] = max(win[cost], second[cost]) <= tie * min(win[cost], second[cost])
+            entry["wall_ratio"] = second["wall_time_s"] / win["wall_time_s"]
+            paired = [a / b for a, b in zip(second.get("wall_times_s") or (),
+                                             win.get("wall_times_s") or (), strict=False)]
+            if paired:
+                entry["wall_ratio_range"] = (min(paired), max(paired))
         out.append(entry)
+    return out
+
+
+VERDICT_COLUMNS = ("target_deg", "cheapest", "cheapest_setting", "modelled_cost_ms",
+                   "max_error_deg", "wall_time_ms", "runner_up", "runner_up_setting",
+                   "cost_ratio", "tie", "wall_time_ratio", "wall_time_ratio_low",
+                   "wall_time_ratio_high")
+
+
+def verdict_table(verdicts: list[dict]) -> list[dict]:
+    """The verdict as rows of :data:`VERDICT_COLUMNS` (``verdict.csv``): per accuracy target
+    the cheapest technique and its setting, its modelled cost, the runner-up and the cost
+    ratio, and the measured wall-time ratio with its range over the interleaved repeats."""
+    out = []
+    for v in verdicts:
+        w, r = v["winner"], v["runner_up"]
+        low, high = v["wall_ratio_range"] or (None, None)
+        out.append({
+            "target_deg": v["target_deg"],
+            "cheapest": w["technique"] if w else "none reached it",
+            "cheapest_setting": _setting(w) if w else None,
+            "modelled_cost_ms": w["modelled_cost_s"] * 1e3 if w else None,
+            "max_error_deg": w["max_error_deg"] if w else None,
+            "wall_time_ms": w["wall_time_s"] * 1e3 if w else None,
+            "runner_up": r["technique"] if r else None,
+            "runner_up_setting": _setting(r) if r else None,
+            "cost_ratio": v["ratios"][r["technique"]] if r else None,
+            "tie": v["tie"], "wall_time_ratio": v["wall_ratio"],
+            "wall_time_ratio_low": low, "wall_time_ratio_high": high})
     return out
 
 
@@ -226,14 +400,24 @@ def verdict_sentences(verdicts: list[dict], techniques: list[str]) -> list[str]:
             lines.append(f"{target:g}°: no technique reached it in the steps tried.")
             continue
         w = v["winner"]
-        setting = (f"h = {w['h_s'] * 1e3:g} ms" if w["h_s"] else f"tol = {w['tolerance']:g}")
-        parts = [f"{name} {ratio:.1f}× dearer" for name, ratio in v["ratios"].items()]
-        missing = [t for t in techniques if t != w["technique"] and t not in v["ratios"]]
-        text = (f"{target:g}°: cheapest is {w['technique']} ({setting}, "
-                f"{w['wall_time_s'] * 1e3:.2f} ms, {w['rhs_body']} body + {w['rhs_muscle']} "
-                f"muscle evaluations)")
+        work = f"{w['rhs_body']} body + {w['rhs_muscle']} muscle evaluations"
+        if w.get("newton_iterations"):
+            work += f" + {w['newton_iterations']} Newton iterations"
+        text = (f"{target:g}°: cheapest is {w['technique']} ({_setting(w)}, modelled cost "
+                f"{w['modelled_cost_s'] * 1e3:.3g} ms: {work})")
+        if v["tie"]:
+            r = v["runner_up"]
+            text += (f"; a tie with {r['technique']} ({_setting(r)}), whose modelled cost is "
+                     f"within {TIE_RATIO:g}× (ratio {v['ratios'][r['technique']]:.2f})")
+        parts = [f"{name} {ratio:.1f}× dearer" for name, ratio in v["ratios"].items()
+                 if not (v["tie"] and name == v["runner_up"]["technique"])]
         if parts:
             text += "; " + ", ".join(parts)
+        if v["wall_ratio_range"]:
+            low, high = v["wall_ratio_range"]
+            text += (f" (measured wall time of the runner-up {v['wall_ratio']:.2g}× the "
+                     f"cheapest's, {low:.2g}–{high:.2g}× over the repeats)")
+        missing = [t for t in techniques if t != w["technique"] and t not in v["ratios"]]
         if missing:
             text += "; never reached by " + ", ".join(missing)
         lines.append(text + ".")

@@ -5,13 +5,25 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import platform
 from datetime import UTC, datetime
 from pathlib import Path
 
 from ..io.atomic import write_atomic, write_text_atomic
 from .cases import smooth_case, smooth_chain_case
-from .compare import COLUMNS, DEFAULT_TOLERANCES, Technique, observed_order, run_study
+from .compare import (
+    COLUMNS,
+    DEFAULT_REPEATS,
+    DEFAULT_TOLERANCES,
+    VERDICT_COLUMNS,
+    Technique,
+    calibrate,
+    observed_order,
+    run_study,
+    verdict,
+    verdict_table,
+)
 from .report import (
     figure_png,
     plot_convergence,
@@ -41,23 +53,47 @@ def smooth_case_orders(progress=None, chain: bool = False) -> dict[str, float]:
     return {t.name: observed_order(rows, t.name) for t in techniques}
 
 
-def rows_to_csv(rows) -> str:
-    """The study table as CSV: :data:`COLUMNS` then the per-joint error columns."""
-    columns = list(rows[0]) if rows else list(COLUMNS)
+def _csv_value(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, tuple):
+        return ";".join(repr(v) for v in value)
+    return str(value)
+
+
+def rows_to_csv(rows, columns=None) -> str:
+    """Rows as CSV (floats in full precision, tuples joined by ``;``). Default columns: the
+    first row's keys (the study table: :data:`COLUMNS` then the per-joint error columns)."""
+    columns = list(columns or (rows[0] if rows else COLUMNS))
     buf = io.StringIO()
     writer = csv.writer(buf)
     writer.writerow(columns)
     for r in rows:
-        writer.writerow(["" if r[c] is None else (repr(r[c]) if isinstance(r[c], float)
-                                                  else r[c]) for c in columns])
+        writer.writerow([_csv_value(r.get(c)) for c in columns])
     return buf.getvalue()
 
 
-def write_study(directory, model, *, steps, repeats=3, progress=None, model_source="builtin",
-                smooth=None):
-    """Run the study on ``model`` and write results.csv, convergence.png,
+def calibration_text(coefficients: dict[str, float]) -> dict[str, str]:
+    """The calibrated time of one unit of work, for people: ``{"one body evaluation": "85
+    ns", ...}``."""
+    names = {"fixed.step.monolithic": "monolithic loop: per-step overhead",
+             "fixed.step.partitioned": "partitioned loop: per-step overhead (exchange)",
+             "fixed.body": "one body evaluation (joint accelerations)",
+             "fixed.muscle": "one muscle evaluation (every unit's CE velocity)",
+             "fixed.newton": "one Newton iteration of an implicit unit equation",
+             "scipy.step": "SciPy: per-step overhead", "scipy.call": "SciPy: one right-hand side "
+             "call (from Python)", "scipy.lu": "SciPy: one LU factorisation"}
+    return {names[k]: f"{v * 1e9:.4g} ns" for k, v in coefficients.items() if k in names}
+
+
+def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=None,
+                model_source="builtin", smooth=None, timer=None):
+    """Run the study on ``model`` and write results.csv, verdict.csv, convergence.png,
     work_precision.png, time_constants.png, report.html and manifest.json into ``directory``.
-    ``smooth`` (orders on the smooth case) is measured unless given."""
+    ``smooth`` (orders on the smooth case) is measured unless given. ``timer``: see
+    :func:`~torquesim.study.compare.run_study`."""
     from .. import __version__
     from ..io.model_file import model_to_toml
     from ..model.chain import as_chain
@@ -65,22 +101,33 @@ def write_study(directory, model, *, steps, repeats=3, progress=None, model_sour
     model = as_chain(model)
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    rows, reference = run_study(model, steps=steps, repeats=repeats, progress=progress)
+    extra = {} if timer is None else {"timer": timer}
+    rows, reference = run_study(model, steps=steps, repeats=repeats, progress=progress,
+                                **extra)
+    coefficients = calibrate(rows)
     if smooth is None:
         if progress:
             progress(0, 0, "smooth case orders")
         smooth = smooth_case_orders(chain=model.n_joints > 1)
     write_text_atomic(directory / "results.csv", rows_to_csv(rows))
+    verdicts = verdict_table(verdict(rows))
+    write_text_atomic(directory / "verdict.csv", rows_to_csv(verdicts, VERDICT_COLUMNS))
     for name, plot in (("convergence", plot_convergence), ("work_precision", plot_work_precision)):
         png = figure_png(plot(rows))
         write_atomic(directory / f"{name}.png", lambda p, png=png: p.write_bytes(png))
     png = figure_png(plot_time_constants(reference))
     write_atomic(directory / "time_constants.png", lambda p: p.write_bytes(png))
     settings = {"steps_s": list(steps), "repeats": repeats, "model": model_source}
+    load = _load_average()
     shown = {"model": model_source, "fixed steps (ms)": [h * 1e3 for h in steps],
              "adaptive tolerances (rtol)": list(DEFAULT_TOLERANCES),
              "reference": "SciPy Radau, rtol 1e-11, atol 1e-13",
-             "wall time": f"median of {repeats} runs after compilation"}
+             "cost": "modelled: work counts × the time of one unit of each kind of work, "
+                     "calibrated in this run",
+             "wall time": f"minimum of {repeats} runs, interleaved round-robin over all runs, "
+                          "after compilation",
+             "load average at the end (1 min)": "unknown" if load is None else f"{load:.2f}",
+             **calibration_text(coefficients)}
     write_text_atomic(directory / "report.html",
                       render_report(rows, reference, smooth_orders=smooth, settings=shown))
     manifest = {"torquesim_version": __version__,
@@ -88,8 +135,17 @@ def write_study(directory, model, *, steps, repeats=3, progress=None, model_sour
                 "command": "compare", "settings": settings,
                 "reference": {"method": "Radau", "rtol": 1e-11, "atol": 1e-13},
                 "smooth_case_orders": smooth,
+                "calibration_s": coefficients, "load_average_1min": load,
                 "machine": {"python": platform.python_version(),
-                            "platform": platform.platform(), "processor": platform.machine()},
+                            "platform": platform.platform(), "processor": platform.machine(),
+                            "cpus": os.cpu_count()},
                 "model_toml": model_to_toml(model)}
     write_text_atomic(directory / "manifest.json", json.dumps(manifest, indent=2) + "\n")
     return rows, reference, smooth
+
+
+def _load_average() -> float | None:
+    try:
+        return os.getloadavg()[0]
+    except (AttributeError, OSError):  # pragma: no cover - not on every platform
+        return None

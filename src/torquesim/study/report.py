@@ -13,6 +13,7 @@ from ..solvers.fixed_step import RK4_STABILITY_LIMIT
 from .compare import (
     ACCURACY_TARGETS_DEG,
     STABLE_ERROR_DEG,
+    TIE_RATIO,
     observed_order,
     stability_limit,
     verdict,
@@ -33,21 +34,43 @@ def _techniques(rows):
     return list(dict.fromkeys(r["technique"] for r in rows))
 
 
+#: Each technique's marker and dash pattern, in the order the techniques appear: lines that lie
+#: on top of each other stay distinguishable without colour.
+MARKERS = "osD^v<>ph*XP"
+DASHES = ("-", "--", "-.", ":")
+
+
+def _style(i: int) -> dict:
+    return {"marker": MARKERS[i % len(MARKERS)], "ls": DASHES[i % len(DASHES)],
+            "ms": 8 - (i % 3) * 1.5, "alpha": 0.85}
+
+
 def _loglog_by_technique(rows, x_key, y_key, *, label, xlabel, ylabel, title, lines):
-    """One log-log line per technique of ``rows[y_key]`` against ``rows[x_key]`` (x in ms);
-    ``label(name)`` names each line and ``lines`` are (y, text) reference levels."""
+    """One log-log line per technique of ``rows[y_key]`` against ``rows[x_key]`` (× 1e3:
+    s → ms); ``label(name)`` names each line and ``lines`` are (y, text) reference levels.
+    Runs the stability guard flags are drawn with hollow markers."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
-    fig, ax = plt.subplots(figsize=(8, 5.5), constrained_layout=True)
-    for name in _techniques(rows):
-        pts = sorted((r[x_key], r[y_key]) for r in rows
+    fig, ax = plt.subplots(figsize=(8, 5.8), constrained_layout=True)
+    flagged_any = False
+    for i, name in enumerate(_techniques(rows)):
+        pts = sorted((r[x_key], r[y_key], bool(r["guard_exceeded"])) for r in rows
                      if r["technique"] == name and r[x_key] and math.isfinite(r[y_key]))
-        if pts:
-            x, y = np.array(pts).T
-            ax.loglog(x * 1e3, y, "o-", label=label(name))
+        style = _style(i)
+        if not pts:
+            ax.plot([], [], color=f"C{i % 10}", label=label(name), **style)
+            continue
+        x, y, flagged = (np.array(v) for v in zip(*pts, strict=True))
+        (line,) = ax.loglog(x * 1e3, y, label=label(name), color=f"C{i % 10}",
+                            zorder=3 + (name == "partitioned"), **style)
+        if flagged.any():
+            flagged_any = True
+            ax.loglog(x[flagged] * 1e3, y[flagged], ls="none", marker=style["marker"],
+                      ms=style["ms"], mfc="white", mec=line.get_color(), zorder=5)
     for level, text in lines:
         ax.axhline(level, color="grey", ls=":", lw=0.8)
         ax.text(ax.get_xlim()[0], level * 1.15, f" {text}", color="grey", fontsize="small")
@@ -55,53 +78,96 @@ def _loglog_by_technique(rows, x_key, y_key, *, label, xlabel, ylabel, title, li
     ax.set_ylabel(ylabel)
     ax.set_title(wrapped(title))
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize="small")
+    handles, labels = ax.get_legend_handles_labels()
+    if flagged_any:
+        handles.append(Line2D([], [], ls="none", marker="o", mfc="white", mec="black"))
+        labels.append("hollow: stability guard flagged the run")
+    fig.legend(handles, labels, fontsize="small", loc="outside lower center", ncols=2)
     return fig
 
 
+def _limit_text(rows, name) -> str:
+    """The stability limit in words, censored where the steps tried do not bound it."""
+    steps = [r["h_s"] for r in rows if r["technique"] == name and r["h_s"]]
+    if not steps:
+        return ""
+    limit = stability_limit(rows, name)
+    if limit is None:
+        return f"never within {STABLE_ERROR_DEG:g}°"
+    if limit >= max(steps):
+        return f"within {STABLE_ERROR_DEG:g}° up to ≥ {limit * 1e3:g} ms"
+    return f"within {STABLE_ERROR_DEG:g}° up to {limit * 1e3:g} ms"
+
+
 def order_label(rows, name) -> str:
-    """``name (slope p)`` where the runs show an asymptotic range, else says there is none."""
+    """``name (slope p; within 1° up to h ms)`` where the runs show an asymptotic range, else
+    says there is none; the stability limit is censored (≥, never) where the steps tried do
+    not bound it."""
     order = observed_order(rows, name)
-    return f"{name} ({'no asymptotic range' if order is None else f'slope {order:.2f}'})"
+    parts = ["no asymptotic range" if order is None else f"slope {order:.2f}"]
+    limit = _limit_text(rows, name)
+    if limit:
+        parts.append(limit)
+    return f"{name} ({'; '.join(parts)})"
 
 
 def plot_convergence(rows):
     """Max angle error (degrees) against step (log-log), one line per fixed-step technique,
-    labelled with its fitted slope where :func:`observed_order` finds a power law."""
+    labelled with its fitted slope where :func:`observed_order` finds a power law and with its
+    stability limit (censored where the steps tried do not bound it)."""
+    fixed = [r for r in rows if r["h_s"]]
     return _loglog_by_technique(
-        rows, "h_s", "max_error_deg", label=lambda name: order_label(rows, name),
+        fixed, "h_s", "max_error_deg", label=lambda name: order_label(fixed, name),
         xlabel="step h (ms)", ylabel="max |q − q_ref| over the motion and the joints (deg)",
         title="Convergence against the Radau reference",
-        lines=[(STABLE_ERROR_DEG, f"{STABLE_ERROR_DEG:g}°: the stability criterion")])
+        lines=[(STABLE_ERROR_DEG, f"accuracy threshold ({STABLE_ERROR_DEG:g}°)")])
 
 
 def plot_work_precision(rows):
-    """Max angle error against median wall time, one line per technique."""
+    """Max angle error against modelled cost (work counts × calibrated unit times), one line
+    per technique; hollow markers for runs the stability guard flags."""
     return _loglog_by_technique(
-        rows, "wall_time_s", "max_error_deg", label=str, xlabel="wall time (ms, median)",
+        rows, "modelled_cost_s", "max_error_deg", label=str,
+        xlabel="modelled cost (ms): work counts × time per unit of work, calibrated in this run",
         ylabel="max angle error (deg)", title="Work-precision",
         lines=[(t, f"{t:g}°") for t in ACCURACY_TARGETS_DEG])
 
 
 def plot_time_constants(reference):
-    """Each unit's CE time constant over the motion, with the RK4 limit it sets."""
+    """Each unit's CE time constant over the motion, with the RK4 limit it sets; the y axis
+    has labelled ticks at 1, 2 and 5 per decade and the smallest τ and its limit are marked
+    with their values."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
 
     taus = reference.time_constants()
-    fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, constrained_layout=True)
+    fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, constrained_layout=True)
     for joint in reference.model.joints:
         ax0.plot(reference.time, np.degrees(reference.angle(joint.name)),
                  label=joint.coordinate)
     ax0.set_ylabel("joint angle (deg)")
     ax0.legend(fontsize="small")
-    for name, tau in taus.items():
-        ax1.semilogy(reference.time, tau * 1e3, label=f"{name} τ")
-    limit = RK4_STABILITY_LIMIT * np.min(np.array(list(taus.values())), axis=0)
-    ax1.semilogy(reference.time, limit * 1e3, "k:",
+    for i, (name, tau) in enumerate(taus.items()):
+        ax1.semilogy(reference.time, tau * 1e3, label=f"{name} τ", ls=DASHES[i % 4])
+    smallest = np.min(np.array(list(taus.values())), axis=0)
+    ax1.semilogy(reference.time, RK4_STABILITY_LIMIT * smallest * 1e3, "k:",
                  label="largest stable RK4 step 2.785·min τ")
+    finite = smallest[np.isfinite(smallest)]
+    if finite.size:
+        tau_min = float(np.min(finite))
+        i_min = int(np.nanargmin(np.where(np.isfinite(smallest), smallest, np.nan)))
+        for value, text in ((tau_min, f"min τ = {tau_min * 1e3:.3g} ms"),
+                            (RK4_STABILITY_LIMIT * tau_min,
+                             f"2.785·min τ = {RK4_STABILITY_LIMIT * tau_min * 1e3:.3g} ms")):
+            ax1.axhline(value * 1e3, color="grey", lw=0.6)
+            ax1.annotate(text, (reference.time[i_min], value * 1e3), xytext=(6, 3),
+                         textcoords="offset points", fontsize="small")
     ax1.set_ylabel("CE time constant τ (ms)")
     ax1.set_xlabel("time (s)")
-    ax1.legend(fontsize="small")
+    ax1.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax1.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax1.yaxis.set_minor_locator(NullLocator())
+    ax1.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax1.grid(alpha=0.3, which="both")
     return fig
 
@@ -162,7 +228,10 @@ RUN_TABLE = (("technique", "technique", None), ("h_s", "step h (ms)", 1e3),
              ("stable", "within 1°", None), ("guard_exceeded", "guard exceeded", None),
              ("max_step_over_tau", "max h/τ", None), ("steps", "steps", None),
              ("rhs_body", "body evaluations", None), ("rhs_muscle", "muscle evaluations", None),
-             ("wall_time_s", "wall time (ms)", 1e3), ("status", "status", None))
+             ("newton_iterations", "Newton iterations", None),
+             ("modelled_cost_s", "modelled cost (ms)", 1e3),
+             ("wall_time_s", "wall time, min (ms)", 1e3),
+             ("wall_time_max_s", "wall time, max (ms)", 1e3), ("status", "status", None))
 
 
 def _scaled(value, scale):
@@ -177,20 +246,22 @@ def render_report(rows, reference, *, smooth_orders=None, title="torquesim compa
     sentences = verdict_sentences(verdict(rows), names)
     body = ["<p>Every technique against a Radau reference (rtol 1e-11). Error = max |q − "
             "q<sub>ref</sub>| over the motion and over the joints (results.csv also gives it "
-            "per joint). Cost = median wall time after compilation and right-hand-side "
-            "evaluations per part.</p>",
+            "per joint). Cost = modelled cost: the run's work (right-hand-side evaluations of "
+            "each part, Newton iterations) times the time of one unit of each, calibrated in "
+            "this run on every run's minimum wall time over interleaved repeats; so the "
+            "ranking does not move with machine load. Techniques whose modelled costs are "
+            f"within {TIE_RATIO:g}× are a tie. verdict.csv holds the verdict.</p>",
             "<h2>Verdict</h2><ul>", *(f"<li>{html.escape(s)}</li>" for s in sentences), "</ul>",
             "<h2>Measured orders and stability limits</h2>"]
     order_rows = []
     for name in names:
         order = observed_order(rows, name)
-        limit = stability_limit(rows, name)
         smooth = (smooth_orders or {}).get(name)
         order_rows.append((name, "none" if order is None else f"{order:.2f}",
                            "" if smooth is None else f"{smooth:.2f}",
-                           None if limit is None else limit * 1e3))
+                           _limit_text(rows, name) or "adaptive"))
     body.append(table(("technique", "observed order (this model)", "order on the smooth case",
-                       "stability limit: largest h within 1° (ms)"), order_rows))
+                       "stability limit (every step up to it within 1°)"), order_rows))
     body.append("<p>“none”: the errors do not fall as a power of h over the steps tried (no "
                 "asymptotic range; for monolithic RK4 on the curl the error below the "
                 "stability limit is a floor set by the model's kinks), or too few runs were "

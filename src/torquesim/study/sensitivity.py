@@ -20,7 +20,7 @@ from ..errors import ModelError
 from ..io.atomic import write_atomic, write_text_atomic
 from ..model.activation import ActivationProfile
 from ..model.chain import ChainModel, as_chain
-from .compare import ACCURACY_TARGETS_DEG, stability_limit, verdict
+from .compare import ACCURACY_TARGETS_DEG, DEFAULT_REPEATS, stability_limit, verdict
 from .outputs import smooth_case_orders, write_study
 from .page import image, page, table
 from .report import figure_png, plot_sensitivity
@@ -38,7 +38,7 @@ VARIABLES = {
 }
 SUMMARY_COLUMNS = ("variable", "value", "technique", "stability_limit_s", "min_tau_unit",
                    "min_tau_s", *(f"cheapest_{t:g}deg" for t in ACCURACY_TARGETS_DEG),
-                   *(f"wall_time_{t:g}deg_s" for t in ACCURACY_TARGETS_DEG))
+                   *(f"cost_{t:g}deg_s" for t in ACCURACY_TARGETS_DEG))
 
 
 def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
@@ -97,7 +97,7 @@ def summary_rows(name: str, value: float, rows: list[dict], reference) -> list[d
             winner = v["winner"]
             row[f"cheapest_{v['target_deg']:g}deg"] = winner["technique"] if winner else ""
             mine = next((r for r in v["ranking"] if r["technique"] == tech), None)
-            row[f"wall_time_{v['target_deg']:g}deg_s"] = mine["wall_time_s"] if mine else None
+            row[f"cost_{v['target_deg']:g}deg_s"] = mine["modelled_cost_s"] if mine else None
         out.append(row)
     return out
 
@@ -109,9 +109,9 @@ def render_sensitivity(summary, name, figures: dict[float, bytes], overview: byt
                "stability_limit_s": "stability limit (ms)", "min_tau_unit": "stiffest unit",
                "min_tau_s": "its smallest τ (ms)",
                **{f"cheapest_{t:g}deg": f"cheapest for {t:g}°" for t in ACCURACY_TARGETS_DEG},
-               **{f"wall_time_{t:g}deg_s": f"its wall time for {t:g}° (ms)"
+               **{f"cost_{t:g}deg_s": f"its modelled cost for {t:g}° (ms)"
                   for t in ACCURACY_TARGETS_DEG}}
-    in_ms = {"stability_limit_s", "min_tau_s", *(f"wall_time_{t:g}deg_s"
+    in_ms = {"stability_limit_s", "min_tau_s", *(f"cost_{t:g}deg_s"
                                                  for t in ACCURACY_TARGETS_DEG)}
     rows = [[r[c] * 1e3 if c in in_ms and r[c] is not None else r[c] for c in SUMMARY_COLUMNS]
             for r in summary]
@@ -128,7 +128,7 @@ def render_sensitivity(summary, name, figures: dict[float, bytes], overview: byt
     return page(f"Sensitivity to {name}", body)
 
 
-def write_sensitivity(directory, model, name: str, values, *, steps, repeats=3,
+def write_sensitivity(directory, model, name: str, values, *, steps, repeats=DEFAULT_REPEATS,
                       progress=None, model_source="builtin") -> list[dict]:
     """Run the study per value into ``directory/NAME=VALUE/`` and write
     ``sensitivity.csv``, ``sensitivity.png`` and ``sensitivity.html`` into ``directory``."""
