@@ -264,8 +264,10 @@ def test_elbow_preset_reproduces_the_single_elbow_code(name):
     run = ts.simulate(ts.load_model("builtin:elbow-curl"), check=False, **_FROZEN_RUNS[name])
     k = max(1, int(round(1e-2 / (run.time[1] - run.time[0]))))
     assert np.max(np.abs(run.states[::k] - _FROZEN[f"{name}/states"])) <= 1e-12
-    assert [run.cost.steps, run.cost.rhs_body, run.cost.rhs_muscle] == \
-        _FROZEN[f"{name}/cost"].tolist()
+    # 0.1 counted two implicit unit-equation residuals as one muscle evaluation; they are
+    # counted apart now (Newton iterations)
+    old_muscle = run.cost.rhs_muscle + math.ceil(run.cost.newton_iterations / 2)
+    assert [run.cost.steps, run.cost.rhs_body, old_muscle] == _FROZEN[f"{name}/cost"].tolist()
 
 
 @pytest.mark.slow

@@ -14,6 +14,7 @@ from torquesim.fitting import (
     ParameterSpace,
     SearchSettings,
     Target,
+    fit_to_accuracy,
     load_target,
     min_jerk_curl,
     run_fit,
@@ -346,6 +347,43 @@ def test_checkpoint_of_another_fit_is_refused(synthetic_target, tmp_path):
                         SearchSettings(search="global"))
     longer = SearchSettings(starts=1, iterations=50)
     assert load_checkpoint(checkpoint, FitProblem(synthetic_target), longer)["seed"] == 1
+
+
+def test_a_checkpoint_fingerprints_every_scored_joint(arm_target, tmp_path):
+    """A checkpoint of a two-joint fit is refused for a target whose second joint differs."""
+    model, target = arm_target
+    checkpoint = tmp_path / "ck.npz"
+    run_fit(FitProblem(target, base_model=model), TINY, checkpoint=checkpoint)
+    other = Target(target.time, np.vstack([target.angles[0], target.angles[1] + 0.01]),
+                   target.joints, "other elbow")
+    with pytest.raises(ts.ModelError, match="another fit"):
+        load_checkpoint(checkpoint, FitProblem(other, base_model=model), TINY)
+    assert load_checkpoint(checkpoint, FitProblem(target, base_model=model), TINY)
+
+
+def test_a_fit_reports_the_error_of_the_model_it_writes(synthetic_target):
+    """At a 50 ms IMEX step the fit's own error is not the fitted model's: the fit continues at
+    half the step until the reference re-simulation agrees with it per joint (10 % or
+    0.02°), and says so."""
+    from torquesim.fitting.fit import integration_gap
+    from torquesim.fitting.outputs import summarise, summary_lines
+
+    coarse = FitProblem(synthetic_target, step=50e-3)
+    settings = SearchSettings(starts=1, iterations=30)
+    first = run_fit(coarse, settings)
+    own, ref = integration_gap(coarse, first.x)["elbow"]
+    assert abs(ref - own) > max(0.1 * own, 0.02)  # the coarse fit alone would mislead
+    problem, outcome, refinements = fit_to_accuracy(FitProblem(synthetic_target, step=50e-3),
+                                                    settings)
+    assert len(refinements) > 1 and refinements[-1]["agree"]
+    assert not any(r["agree"] for r in refinements[:-1])
+    assert problem.step == pytest.approx(refinements[-1]["step_s"]) and problem.step < 50e-3
+    summary = summarise(problem, outcome, settings, refinements)
+    joint = summary["joints"]["elbow"]
+    assert abs(joint["reference_rms_error_deg"] - joint["rms_error_deg"]) <= max(
+        0.1 * joint["rms_error_deg"], 0.02)
+    assert not summary["warnings"]
+    assert any(line.startswith("step          refined 50 ms") for line in summary_lines(summary))
 
 
 @pytest.mark.parametrize("damage, message", [

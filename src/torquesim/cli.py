@@ -398,7 +398,13 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
 
     import numpy as np
 
-    from .fitting import FitProblem, ParameterSpace, SearchSettings, load_target, run_fit
+    from .fitting import (
+        FitProblem,
+        ParameterSpace,
+        SearchSettings,
+        fit_to_accuracy,
+        load_target,
+    )
     from .fitting.fit import load_checkpoint
     from .fitting.outputs import CHECKPOINT_FILE, FIT_FILES, summarise, summary_lines, write_outputs
     from .fitting.target import BUILTIN_TARGETS
@@ -464,12 +470,12 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
                                                                  signal.SIGTERM)}
     try:
         reporter = Progress(quiet)
-        outcome = run_fit(problem, settings, checkpoint=checkpoint, resume=state,
-                          progress=reporter.say,
-                          tick=lambda stage, done, total: reporter.step(done, total, stage),
-                          should_stop=lambda: bool(stop))
+        problem, outcome, refinements = fit_to_accuracy(
+            problem, settings, checkpoint=checkpoint, resume=state, progress=reporter.say,
+            tick=lambda stage, done, total: reporter.step(done, total, stage),
+            should_stop=lambda: bool(stop))
         reporter.close()
-        summary = summarise(problem, outcome, settings)
+        summary = summarise(problem, outcome, settings, refinements)
         files = write_outputs(out, problem, outcome, summary)
     except ModelError:
         lock.unlink(missing_ok=True)

@@ -91,7 +91,13 @@ def job_fingerprint(job: FitJob, settings: dict) -> str:
 def run_job(job: FitJob, settings: dict, folder: str, key: str) -> dict:
     """Fit one target into ``folder`` (a Dask task): resume from its checkpoint when it
     holds one of this fit; a bad file or a failed fit is its own row's one-line error."""
-    from ..fitting import FitProblem, ParameterSpace, SearchSettings, load_target, run_fit
+    from ..fitting import (
+        FitProblem,
+        ParameterSpace,
+        SearchSettings,
+        fit_to_accuracy,
+        load_target,
+    )
     from ..fitting.fit import load_checkpoint
     from ..fitting.outputs import CHECKPOINT_FILE, summarise, write_outputs
     from ..io.model_file import load_model
@@ -118,8 +124,9 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str) -> dict:
                 state = load_checkpoint(checkpoint, problem, search)
             except ModelError:
                 state = None  # another fit's checkpoint: start again
-        outcome = run_fit(problem, search, checkpoint=checkpoint, resume=state)
-        summary = summarise(problem, outcome, search)
+        problem, outcome, refinements = fit_to_accuracy(problem, search, checkpoint=checkpoint,
+                                                        resume=state)
+        summary = summarise(problem, outcome, search, refinements)
         write_outputs(out, problem, outcome, summary)
         (out / FINGERPRINT_FILE).write_text(key + "\n")
         row.update(_summary_figures(summary), status="done", error="")

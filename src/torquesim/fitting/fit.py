@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,7 @@ from scipy.stats import qmc
 from ..errors import ModelError, check_range
 from ..io.atomic import write_atomic
 from .initial_guess import initial_guess
+from .objective import FAILED_SCORE
 from .problem import FitProblem
 
 CHECKPOINT_VERSION = 2
@@ -119,7 +121,7 @@ def fingerprint(problem: FitProblem) -> str:
     """Hash of what a checkpoint is only valid for: target, model, space, technique."""
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(problem.target.time).tobytes())
-    h.update(np.ascontiguousarray(problem.target.angle).tobytes())
+    h.update(np.ascontiguousarray(problem.target.angles).tobytes())  # every scored joint
     h.update(repr((problem.model, problem.space, problem.method, problem.step,
                    problem.weight_velocity, problem.weight_end, problem.weight_effort,
                    problem.weights.tolist(), problem.target.joints)).encode())
@@ -214,6 +216,79 @@ def _explain_failed_start(problem: FitProblem, x) -> None:
                          f"{run.stability.largest_safe_step * 1e3:.3g} ms, or --method imex")
 
 
+#: A fit's own RMS error per scored joint (simulated with its technique and step) and that of
+#: the written model re-simulated with the reference solver must agree within this fraction
+#: of the fit's RMS, or within :data:`AGREEMENT_DEG`, whichever is larger.
+AGREEMENT_FRACTION = 0.10
+AGREEMENT_DEG = 0.02
+#: At most this many halvings of the fit's step to reach that agreement.
+MAX_REFINEMENTS = 4
+
+
+def integration_gap(problem: FitProblem, x) -> dict[str, tuple[float, float]]:
+    """Per scored joint (RMS error of the fit's own simulation, RMS error of the reference
+    re-simulation), deg, of the model with parameters ``x``."""
+    from ..solvers.simulate import simulate
+
+    model = problem.model_for(x)
+    own = simulate(model, problem.method, problem.step, coupling=problem.coupling,
+                   check=False, advise=False, tolerance=None)
+    reference = simulate(model, "reference", output_step=problem.step, check=False)
+    failed = {j: (math.inf, math.inf) for j in problem.target.joints}
+    mine = problem.errors_deg(own) if own.success else failed
+    theirs = problem.errors_deg(reference) if reference.success else failed
+    return {j: (mine[j][0], theirs[j][0]) for j in problem.target.joints}
+
+
+def agrees(gap: dict[str, tuple[float, float]]) -> bool:
+    """Whether every joint's fit RMS and reference RMS agree (:data:`AGREEMENT_FRACTION`)."""
+    return all(abs(ref - own) <= max(AGREEMENT_FRACTION * own, AGREEMENT_DEG)
+               for own, ref in gap.values())
+
+
+def fit_to_accuracy(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
+                    checkpoint: str | Path | None = None, resume: dict | None = None,
+                    progress: Callable[[str], None] | None = None,
+                    tick: Callable[[str, int, int], None] | None = None,
+                    should_stop: Callable[[], bool] = lambda: False
+                    ) -> tuple[FitProblem, FitOutcome, list[dict]]:
+    """:func:`run_fit`, then control the fit's integration error: while the reference
+    re-simulation of the fitted model and the fit's own simulation disagree on a joint's RMS
+    error (:func:`agrees`), continue the fit by least squares from the current parameters at
+    half the step (at most :data:`MAX_REFINEMENTS` times). So the headline error of the fit is
+    that of the model it writes, simulated accurately.
+
+    Returns (the problem at the final step, the outcome, the refinements: one dict per step
+    tried with its per-joint fit and reference RMS)."""
+    say = progress or (lambda _msg: None)
+    outcome = run_fit(problem, settings, checkpoint=checkpoint, resume=resume,
+                      progress=progress, tick=tick, should_stop=should_stop)
+    refinements: list[dict] = []
+    while not outcome.interrupted and outcome.score < FAILED_SCORE:
+        gap = integration_gap(problem, outcome.x)
+        refinements.append({"step_s": problem.step, "joints": {
+            j: {"rms_error_deg": own, "reference_rms_error_deg": ref}
+            for j, (own, ref) in gap.items()}, "agree": agrees(gap)})
+        if agrees(gap) or len(refinements) > MAX_REFINEMENTS:
+            break
+        worst = max(gap, key=lambda j: abs(gap[j][1] - gap[j][0]))
+        finer = replace(problem, step=problem.step / 2, simulations=problem.simulations,
+                        failed_simulations=problem.failed_simulations)
+        say(f"integration error: at step {problem.step * 1e3:.4g} ms the fit's {worst} RMS "
+            f"is {gap[worst][0]:.3f} deg but the reference re-simulation's "
+            f"{gap[worst][1]:.3f} deg; continuing at {finer.step * 1e3:.4g} ms")
+        more = run_fit(finer, replace(settings, search="least-squares", starts=1),
+                       progress=progress, tick=tick, should_stop=should_stop, start=outcome.x)
+        outcome = FitOutcome(more.x, more.score, outcome.initial_x, outcome.initial_score,
+                             more.simulations, more.failed_simulations,
+                             outcome.wall_time + more.wall_time, outcome.generations_done,
+                             outcome.polish_done, more.interrupted,
+                             outcome.history + [[h[0], h[1] + outcome.wall_time, h[2]]
+                                                for h in more.history])
+        problem = finer
+    return problem, outcome, refinements
+
+
 class _Stop(Exception):
     """Raised inside a least-squares residual evaluation to stop the search."""
 
@@ -222,8 +297,10 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
             checkpoint: str | Path | None = None, resume: dict | None = None,
             progress: Callable[[str], None] | None = None,
             tick: Callable[[str, int, int], None] | None = None,
-            should_stop: Callable[[], bool] = lambda: False) -> FitOutcome:
-    """Fit the activation ramps of ``problem`` (module docstring).
+            should_stop: Callable[[], bool] = lambda: False,
+            start: np.ndarray | None = None) -> FitOutcome:
+    """Fit the activation ramps of ``problem`` (module docstring), from the inverse-dynamics
+    guess or, given, the parameter vector ``start``.
 
     ``should_stop`` is polled at every simulation batch; when it returns True the fit stops,
     checkpoints and returns the best so far with ``interrupted=True``. ``progress(message)``
@@ -238,7 +315,7 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
         raise ModelError("freeze", "every parameter is frozen; allowed: at least one free")
     run = _Run(problem, settings, checkpoint, say, tick, should_stop)
     if resume is None:
-        guess = initial_guess(problem)
+        guess = initial_guess(problem) if start is None else np.asarray(start, dtype=float)
         scores, failed = problem.evaluate(guess)
         guess_score = float(scores[0])
         if failed[0] and problem.explicit_muscles:
