@@ -408,6 +408,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
     from .fitting.fit import load_checkpoint
     from .fitting.outputs import CHECKPOINT_FILE, FIT_FILES, summarise, summary_lines, write_outputs
     from .fitting.target import BUILTIN_TARGETS
+    from .io.lock import take_lock
     from .io.model_file import load_model
 
     out = Path(out_dir)
@@ -455,7 +456,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
         state = load_checkpoint(checkpoint, problem, settings)
     created = not out.exists()
     out.mkdir(exist_ok=True)
-    lock = _take_lock(out)
+    lock = take_lock(out)
     stop = []
 
     def request_stop(signum, _frame):
@@ -493,37 +494,6 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
                    err=True)
         return 130
     return 0
-
-
-LOCK_FILE = ".torquesim-fit.lock"
-
-
-def _take_lock(out: Path) -> Path:
-    """Create ``out/.torquesim-fit.lock`` holding this process id, or refuse when another
-    running process holds it (a lock left by a process that is gone is taken over)."""
-    import os
-
-    lock = out / LOCK_FILE
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            try:
-                holder = int(lock.read_text().strip() or 0)
-                os.kill(holder, 0)  # raises if no such process
-                running = holder != os.getpid()
-            except (ValueError, OSError):
-                running = False
-            if running:
-                raise ModelError("--out", f"another torquesim fit (process {holder}) is "
-                                 f"writing to {str(out)!r}; allowed: one fit per directory at "
-                                 f"a time (if none is running, delete {str(lock)!r})") from None
-            lock.unlink(missing_ok=True)  # stale: its process is gone
-            continue
-        with os.fdopen(fd, "w") as fh:
-            fh.write(str(os.getpid()))
-        return lock
-    raise ModelError("--out", f"cannot take the lock {str(lock)!r}")
 
 
 @cli.group()
@@ -616,8 +586,9 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
 @click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
               default="imex", show_default=True)
 @click.option("--step", type=TIME, default="5ms", show_default=True)
-@click.option("--chunk", type=click.IntRange(1, 1_000_000), default=1000, show_default=True,
-              help="Samples per Dask task.")
+@click.option("--chunk", type=click.IntRange(1, 1_000_000), default=None,
+              help="Samples per Dask task (default: an even split giving every worker at "
+                   "least 4 tasks, at most 1000 samples each).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="sweep-out",
               show_default=True)
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
@@ -626,9 +597,10 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
                    "degrees.")
 @click.option("--accept-inaccurate", is_flag=True,
               help="Exit 0 even when some samples are inaccurate or unstable.")
+@click.option("--overwrite", is_flag=True, help="Replace another sweep held in --out.")
 @_engine_options
 def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out_dir,
-                tolerance, accept_inaccurate, workers, scheduler, quiet):
+                tolerance, accept_inaccurate, overwrite, workers, scheduler, quiet):
     """Simulate the model over parameter distributions; write sweep.csv (one row per
     sample), percentile bands (sweep.png, sweep_percentiles.csv), rank correlations and
     sweep.html. Finished chunks are kept in OUT/chunks and skipped on a rerun."""
@@ -638,7 +610,7 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
     try:
         table, _ = sweep(model_path, vary, samples=samples, seed=seed, sobol=sobol,
                          method=method, step=step, out=out_dir, chunk=chunk, workers=workers,
-                         scheduler=scheduler, progress=progress,
+                         scheduler=scheduler, progress=progress, overwrite=overwrite,
                          tolerance=_tolerance_rad(tolerance, "--tolerance"))
     except KeyboardInterrupt:
         reporter.close()

@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError, SimulationError, check_range
 from .report import write_batch_page, write_batch_table
 
 FINGERPRINT_FILE = "batch_fingerprint.txt"
@@ -46,6 +46,9 @@ def expand_targets(targets, model: str = "builtin:elbow-curl", manifest=None) ->
         except OSError as exc:
             raise ModelError("--manifest", f"cannot read {str(path)!r}: {exc.strerror}") \
                 from None
+        except (UnicodeDecodeError, csv.Error):
+            raise ModelError("--manifest", f"{path.name} is not a UTF-8 CSV text file; "
+                             "allowed: a CSV with a header target,model,column") from None
         if not rows or "target" not in rows[0]:
             raise ModelError("--manifest", f"{path.name}: needs a header with 'target' (and "
                              "optionally 'model', 'column')")
@@ -61,6 +64,9 @@ def expand_targets(targets, model: str = "builtin:elbow-curl", manifest=None) ->
             own = (row.get("model") or "").strip()
             specs.append((resolve(target), resolve(own) if own else model,
                           (row.get("column") or "").strip() or None))
+    if isinstance(targets, str):
+        raise ModelError("targets", "expected a list of target files, globs or builtin: "
+                         f"names, got the string {targets!r}; allowed: [{targets!r}]")
     for spec in targets:
         matches = [spec] if spec.startswith("builtin:") else sorted(glob.glob(spec))
         if not matches:
@@ -68,8 +74,13 @@ def expand_targets(targets, model: str = "builtin:elbow-curl", manifest=None) ->
         specs += [(m, model, None) for m in matches]
     if not specs:
         raise ModelError("TARGET", "no targets; allowed: files, globs or --manifest")
-    jobs, used = [], set()
+    jobs, used, seen = [], set(), set()
     for target, job_model, column in specs:
+        # absolute paths: Dask workers run in folders of their own
+        target, job_model = _absolute(target), _absolute(job_model)
+        if (target, job_model, column) in seen:  # the same fit once
+            continue
+        seen.add((target, job_model, column))
         stem = target.replace(":", "-") if target.startswith("builtin:") else Path(target).stem
         name, k = stem, 2
         while name in used:
@@ -77,6 +88,10 @@ def expand_targets(targets, model: str = "builtin:elbow-curl", manifest=None) ->
         used.add(name)
         jobs.append(FitJob(name, target, job_model, column))
     return jobs
+
+
+def _absolute(spec: str) -> str:
+    return spec if spec.startswith("builtin:") else str(Path(spec).resolve())
 
 
 def job_fingerprint(job: FitJob, settings: dict) -> str:
@@ -88,9 +103,13 @@ def job_fingerprint(job: FitJob, settings: dict) -> str:
     return h.hexdigest()[:16]
 
 
-def run_job(job: FitJob, settings: dict, folder: str, key: str) -> dict:
+def run_job(job: FitJob, settings: dict, folder: str, key: str, stop: str | None = None
+            ) -> dict:
     """Fit one target into ``folder`` (a Dask task): resume from its checkpoint when it
-    holds one of this fit; a bad file or a failed fit is its own row's one-line error."""
+    holds one of this fit; a bad file or a failed fit is its own row's one-line error. The
+    folder's fit lock is held throughout (no two fits write one folder, wherever they run);
+    the fit stops, writing the best so far and its checkpoint, when the client sets the Dask
+    event ``stop`` (Ctrl-C)."""
     from ..fitting import (
         FitProblem,
         ParameterSpace,
@@ -100,10 +119,12 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str) -> dict:
     )
     from ..fitting.fit import load_checkpoint
     from ..fitting.outputs import CHECKPOINT_FILE, summarise, write_outputs
+    from ..io.lock import take_lock
     from ..io.model_file import load_model
-    from .engine import single_threaded, worker_name
+    from .engine import single_threaded, stop_flag, worker_name
 
     single_threaded()
+    lock = None
     row = {"name": job.name, "target": job.target, "model": job.model,
            "worker": worker_name()}
     start = time.perf_counter()
@@ -117,6 +138,7 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str) -> dict:
         search = SearchSettings(search=settings["search"], seed=settings["seed"],
                                 starts=settings["starts"], iterations=settings["iterations"])
         out.mkdir(parents=True, exist_ok=True)
+        lock = take_lock(out)
         checkpoint = out / CHECKPOINT_FILE
         state = None
         if checkpoint.is_file():
@@ -125,14 +147,22 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str) -> dict:
             except ModelError:
                 state = None  # another fit's checkpoint: start again
         problem, outcome, refinements = fit_to_accuracy(problem, search, checkpoint=checkpoint,
-                                                        resume=state)
+                                                        resume=state,
+                                                        should_stop=stop_flag(stop))
         summary = summarise(problem, outcome, search, refinements)
         write_outputs(out, problem, outcome, summary)
-        (out / FINGERPRINT_FILE).write_text(key + "\n")
-        row.update(_summary_figures(summary), status="done", error="")
+        if outcome.interrupted:
+            row.update(_summary_figures(summary), status="interrupted",
+                       error="stopped: best so far and checkpoint written")
+        else:
+            (out / FINGERPRINT_FILE).write_text(key + "\n")
+            row.update(_summary_figures(summary), status="done", error="")
     except (ModelError, SimulationError, OSError) as exc:
         row.update(status="failed", error=str(exc).splitlines()[0] if str(exc) else
                    type(exc).__name__)
+    finally:
+        if lock is not None:
+            lock.unlink(missing_ok=True)
     row["wall_time_s"] = time.perf_counter() - start
     return row
 
@@ -156,6 +186,24 @@ def _finished_row(job: FitJob, folder: Path, key: str) -> dict | None:
             "status": "done earlier", "worker": "", "error": "", **_summary_figures(summary)}
 
 
+def _check_settings(jobs: list[FitJob], settings: dict) -> None:
+    """Settings that would fail every fit are the command's error, not each row's: the
+    search, the method, the step and every distinct model file."""
+    from ..fitting import SearchSettings
+    from ..fitting.problem import FIT_METHODS
+    from ..io.model_file import load_model
+
+    SearchSettings(search=settings["search"], seed=settings["seed"],
+                   starts=settings["starts"], iterations=settings["iterations"])
+    if settings["method"] not in FIT_METHODS:
+        raise ModelError("--method", f"{settings['method']!r}; allowed: "
+                         f"{', '.join(FIT_METHODS)}")
+    check_range("--step", settings["step"], 1e-5, 1.0, unit="s")
+    check_range("--weight-effort", settings["weight_effort"], 0.0, 1e6)
+    for spec in dict.fromkeys(job.model for job in jobs):
+        load_model(spec)
+
+
 def fit_many(targets=(), *, out, model: str = "builtin:elbow-curl", manifest=None,
              method: str = "imex", step: float = 5e-3, search: str = "least-squares",
              seed: int = 1, starts: int = 4, iterations: int = 200,
@@ -165,16 +213,20 @@ def fit_many(targets=(), *, out, model: str = "builtin:elbow-curl", manifest=Non
     each into ``out/NAME/``; write ``out/batch.csv`` as fits finish and ``out/batch.html``
     at the end. Returns the table as a pandas DataFrame (one row per target: status, errors,
     simulations, wall time, worker, the error of a failed row)."""
+    import uuid
+
     import pandas as pd
 
-    from .engine import connect, run_tasks
+    from .engine import check_scheduler, check_shared_folder, connect, run_tasks
 
-    out = Path(out)
+    out = Path(out).resolve()  # absolute: Dask workers run in folders of their own
+    if out.exists() and not out.is_dir():
+        raise ModelError("--out", f"{str(out)!r} is a file; allowed: a directory")
     jobs = expand_targets(targets, model, manifest)
     settings = {"method": method, "step": step, "search": search, "seed": seed,
                 "starts": starts, "iterations": iterations, "weight_effort": weight_effort,
                 "units": units}
-    out.mkdir(parents=True, exist_ok=True)
+    _check_settings(jobs, settings)
     rows: list[dict | None] = [None] * len(jobs)
     keys = []
     for i, job in enumerate(jobs):
@@ -192,15 +244,30 @@ def fit_many(targets=(), *, out, model: str = "builtin:elbow-curl", manifest=Non
         rows[todo[k]] = row
         write_batch_table(out, [r for r in rows if r is not None])
 
-    write_batch_table(out, [r for r in rows if r is not None])
-    try:
-        if todo:
-            with connect(client, workers=workers, scheduler=scheduler) as dask_client:
+    if scheduler is not None:
+        check_scheduler(scheduler)
+    stop = f"torquesim-stop-{uuid.uuid4().hex}"
+    created = not out.exists()
+    with connect(client, workers=workers, scheduler=scheduler,
+                 in_process=len(todo) <= 1) as dask_client:
+        out.mkdir(parents=True, exist_ok=True)
+        try:
+            check_shared_folder(dask_client, out)
+        except ModelError:
+            if created:
+                out.rmdir()
+            raise
+        write_batch_table(out, [r for r in rows if r is not None])
+        try:
+            if todo:
                 run_tasks(dask_client, [(run_job, (jobs[i], settings, str(out / jobs[i].name),
-                                                   keys[i])) for i in todo], record,
-                          progress=progress)
-    finally:
-        finished = [r for r in rows if r is not None]
-        write_batch_table(out, finished)
-        write_batch_page(out, finished, settings)
-    return pd.DataFrame([r for r in rows if r is not None])
+                                                   keys[i], stop)) for i in todo], record,
+                          progress=progress, stop_event=stop)
+        finally:
+            for i in todo:
+                if rows[i] is None:
+                    rows[i] = {"name": jobs[i].name, "target": jobs[i].target,
+                               "model": jobs[i].model, "status": "not run", "error": ""}
+            write_batch_table(out, rows)
+            write_batch_page(out, rows, settings)
+    return pd.DataFrame(rows)

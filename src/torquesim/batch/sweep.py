@@ -14,7 +14,9 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import re
+from contextlib import nullcontext
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
@@ -241,10 +243,19 @@ def fingerprint(model_toml: str, values: np.ndarray, method: str, step: float, p
     return h.hexdigest()[:16]
 
 
+#: Work (samples × steps × units) below which a sweep runs in this process instead of starting
+#: a local cluster (about 2 s of simulation on one core, less than a cluster's start-up).
+SMALL_WORK = 2_000_000
+#: Without an explicit chunk size, samples are split so that every worker gets at least this
+#: many tasks (the load then evens out), at most :data:`DEFAULT_CHUNK` samples each.
+TASKS_PER_WORKER = 4
+SWEEP_FINGERPRINT_FILE = "sweep_fingerprint.txt"
+
+
 def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = False,
-          method: str = "imex", step: float = 5e-3, out=None, chunk: int = DEFAULT_CHUNK,
+          method: str = "imex", step: float = 5e-3, out=None, chunk: int | None = None,
           client=None, workers: int | None = None, scheduler: str | None = None,
-          progress=None, tolerance: float = DEFAULT_TOLERANCE):
+          progress=None, tolerance: float = DEFAULT_TOLERANCE, overwrite: bool = False):
     """Simulate ``model`` (a chain, a file or ``builtin:NAME``) over the parameter
     distributions ``vary`` (``PATH=KIND(...)`` strings or :class:`Distribution`) on Dask.
 
@@ -254,19 +265,28 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     ``tolerance`` rad, default 0.5°, and any error or warning) and the angle histories
     (samples × joints × :data:`HISTORY_POINTS`, deg). With ``out``, finished chunks are kept in
     ``out/chunks/`` as they arrive (a rerun with the same settings skips them) and the
-    table, percentile figure and rank correlations are written there.
+    table, percentile figure and rank correlations are written there; a folder holding
+    another sweep is refused unless ``overwrite``.
+
+    Engine: ``client``, or a ``scheduler`` address, or a local cluster of ``workers``
+    processes; small work (:data:`SMALL_WORK`) runs in this process unless ``workers`` is
+    given. ``chunk`` (samples per task) defaults to an even split giving every worker at least
+    :data:`TASKS_PER_WORKER` tasks.
     """
     from ..io.model_file import load_model, model_to_toml
-    from .engine import connect, run_tasks
+    from ..solvers.simulate import step_count
+    from .engine import check_scheduler, connect, workers_of
 
     if method not in SWEEP_METHODS:
         raise ModelError("--method", f"{method!r}; allowed: {', '.join(SWEEP_METHODS)}")
-    if not 1 <= samples <= 10_000_000:
-        raise ModelError("--samples", f"{samples}; allowed 1 to 10000000")
-    if not 1 <= chunk <= 1_000_000:
-        raise ModelError("--chunk", f"{chunk}; allowed 1 to 1000000")
+    _whole_number("--samples", samples, 1, 10_000_000)
+    if chunk is not None:
+        _whole_number("--chunk", chunk, 1, 1_000_000)
     check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
     chain = as_chain(load_model(model) if isinstance(model, str | Path) else model)
+    n_steps = step_count(chain.duration, step, "--step")
+    if isinstance(vary, str | Distribution):
+        vary = [vary]
     distributions = [d if isinstance(d, Distribution) else parse_vary(d) for d in vary]
     if not distributions:
         raise ModelError("--vary", "nothing to vary; allowed: one or more PATH=KIND(...)")
@@ -276,11 +296,87 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
         set_parameter(chain, d.path, typical)
     values = sample_matrix(distributions, samples, seed, sobol)
     model_toml = model_to_toml(chain)
+    whole = fingerprint(model_toml, values, method, step, paths, tolerance)
+    out = None if out is None else Path(out).resolve()
+    if out is not None:
+        if out.exists() and not out.is_dir():
+            raise ModelError("--out", f"{str(out)!r} is a file; allowed: a directory")
+        _check_folder(out, whole, overwrite)
+    small = values.shape[0] * n_steps * chain.n_units <= SMALL_WORK
+    if scheduler is not None:
+        check_scheduler(scheduler)
+
+    def engine():
+        return connect(client, workers=workers, scheduler=scheduler, in_process=small)
+
+    def claim_folder():  # once connected (or with nothing to run): the folder is this sweep's
+        if out is not None:
+            if overwrite:
+                import shutil
+
+                shutil.rmtree(out / "chunks", ignore_errors=True)
+            out.mkdir(parents=True, exist_ok=True)
+            (out / SWEEP_FINGERPRINT_FILE).write_text(whole + "\n")
+
+    if chunk is None and scheduler is None:
+        n = (workers_of(client) if client is not None else
+             1 if small and workers is None else workers or os.cpu_count() or 1)
+        chunk = _auto_chunk(values.shape[0], n)
+    if chunk is not None:
+        results = _run_chunks(engine, claim_folder, chain, paths, values, method, step,
+                              tolerance, chunk, model_toml, out, progress, overwrite)
+    else:
+        with engine() as dask_client:
+            chunk = _auto_chunk(values.shape[0], workers_of(dask_client))
+            results = _run_chunks(lambda: nullcontext(dask_client), claim_folder, chain,
+                                  paths, values, method, step, tolerance, chunk, model_toml,
+                                  out, progress, overwrite)
+    starts = list(range(0, values.shape[0], chunk))
+    table, histories = _assemble(chain, paths, values, [results[k] for k in range(len(starts))])
+    if out is not None:
+        from .report import write_sweep
+
+        write_sweep(out, chain, table, histories, distributions,
+                    {"samples": int(values.shape[0]), "seed": seed, "sobol": sobol,
+                     "method": method, "step_s": step, "chunk": chunk,
+                     "tolerance_deg": math.degrees(tolerance)})
+    return table, histories
+
+
+def _whole_number(field: str, value, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) \
+            or not low <= value <= high:
+        raise ModelError(field, f"{value!r}; allowed a whole number from {low} to {high}")
+    return int(value)
+
+
+def _check_folder(out: Path, whole: str, overwrite: bool) -> None:
+    """Refuse a folder that holds another sweep (unless ``overwrite``)."""
+    try:
+        held = (out / SWEEP_FINGERPRINT_FILE).read_text().strip()
+    except OSError:
+        held = "unknown" if (out / "sweep.csv").exists() else None
+    if held is not None and held != whole and not overwrite:
+        raise ModelError("--out", f"{str(out)!r} holds another sweep; allowed: another "
+                         "folder, or --overwrite to replace it")
+
+
+def _auto_chunk(samples: int, workers: int) -> int:
+    """Samples per task giving every worker :data:`TASKS_PER_WORKER` tasks or more."""
+    return max(1, min(DEFAULT_CHUNK, math.ceil(samples / (TASKS_PER_WORKER * workers))))
+
+
+def _run_chunks(engine, claim_folder, chain, paths, values, method, step, tolerance, chunk,
+                model_toml, out, progress, overwrite) -> dict[int, dict]:
+    """Simulate every chunk not finished earlier (the client writes each into
+    ``out/chunks/`` as it arrives); return chunk index → result. ``engine()`` connects (only
+    when there is work); ``claim_folder()`` marks the folder once it is."""
+    from .engine import run_tasks
+
     starts = list(range(0, values.shape[0], chunk))
     results: dict[int, dict] = {}
-    chunk_dir = Path(out) / "chunks" if out is not None else None
-    if chunk_dir is not None:
-        chunk_dir.mkdir(parents=True, exist_ok=True)
+    chunk_dir = out / "chunks" if out is not None else None
+    if chunk_dir is not None and not overwrite:
         for k, s in enumerate(starts):
             kept = _load_chunk(chunk_dir / f"chunk_{k:05d}.npz",
                                fingerprint(model_toml, values[s:s + chunk], method, step, paths,
@@ -297,21 +393,18 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
                         fingerprint(model_toml, values[starts[k]:starts[k] + chunk], method,
                                     step, paths, tolerance))
 
-    if todo:
-        with connect(client, workers=workers, scheduler=scheduler) as dask_client:
-            run_tasks(dask_client, [(simulate_chunk, (chain, paths,
-                                                      values[starts[k]:starts[k] + chunk],
-                                                      method, step, tolerance))
-                                      for k in todo],
-                      keep, progress=progress)
-    table, histories = _assemble(chain, paths, values, [results[k] for k in range(len(starts))])
-    if out is not None:
-        from .report import write_sweep
-
-        write_sweep(Path(out), chain, table, histories, distributions,
-                    {"samples": int(values.shape[0]), "seed": seed, "sobol": sobol,
-                     "method": method, "step_s": step, "chunk": chunk})
-    return table, histories
+    if not todo:
+        claim_folder()
+        return results
+    with engine() as dask_client:
+        claim_folder()
+        if chunk_dir is not None:
+            chunk_dir.mkdir(parents=True, exist_ok=True)
+        run_tasks(dask_client, [(simulate_chunk, (chain, paths,
+                                                  values[starts[k]:starts[k] + chunk],
+                                                  method, step, tolerance)) for k in todo],
+                  keep, progress=progress)
+    return results
 
 
 def _assemble(chain, paths, values, parts):
