@@ -50,7 +50,7 @@ def test_partial_legacy_elbow_file_takes_defaults(tmp_path):
     ("[extensor.activation]\ninitial_level = 'equilibrium'\n",
      "extensor_activation.initial_level"),
     ("[flexor]\nmin_differential_activation = 0.0\ndifferential_activation_rate = 0.05\n",
-     "flexor.differential_activation_rate"),
+     "flexor.min_differential_activation"),
     ("this is = = not toml", "model"),
 ])
 def test_bad_files_name_the_key(tmp_path, text, field):

@@ -90,17 +90,18 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
     model = load_model(model_path)
     fixed = method != "reference"
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
+    _announce_size(model, method, step, duration, out_path)
     result = run(model, method, step, duration=duration, tolerance=check if fixed else None)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
     if out_path:
         from .io.tables import save_result
 
-        save_result(result, out_path)
+        save_result(result, out_path, "--out")
     if plot_path:
         from .plots import plot_result, save_figure
 
-        save_figure(plot_result(result), plot_path)
+        save_figure(plot_result(result), plot_path, "--plot")
     lines = [
         f"model         {result.model.name} ({result.model.n_joints} joint"
         f"{'s' if result.model.n_joints > 1 else ''}, {result.model.n_units} units)",
@@ -136,6 +137,34 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
     if plot_path:
         lines.append(f"wrote         {plot_path}")
     click.echo("\n".join(lines))
+
+
+#: A run longer than this many steps, or a table larger than this many bytes, is announced
+#: before it starts (with how to make it smaller).
+LARGE_RUN_STEPS = 2_000_000
+LARGE_TABLE_BYTES = 200e6
+
+
+def _announce_size(model, method, step, duration, out_path) -> None:
+    """One line on stderr before a run whose steps or output table are large."""
+    from .errors import check_range
+    from .solvers.simulate import DEFAULT_OUTPUT_STEP, step_count
+
+    span = model.duration if duration is None else check_range(
+        "duration", duration, 0.0, 600.0, low_open=True, unit="s")
+    if method == "reference":
+        rows = round(span / DEFAULT_OUTPUT_STEP) + 1
+        steps = 0
+    else:
+        steps = step_count(span, step)
+        rows = steps + 1
+    columns = 1 + 3 * model.n_joints + 4 * model.n_units
+    size = rows * columns * 23  # a float written in full precision, with its separator
+    if steps > LARGE_RUN_STEPS or (out_path and size > LARGE_TABLE_BYTES):
+        what = f"{steps:,} steps" + (f", a table of about {size / 1e6:,.0f} MB in {out_path}"
+                                     if out_path else "")
+        click.echo(f"note: this run takes {what}; a larger --step or a shorter --duration "
+                   "makes it smaller", err=True)
 
 
 @cli.command()
@@ -281,6 +310,8 @@ def _parse_pairs(values, option: str, example: str) -> dict[str, str]:
         key, eq, value = text.partition("=")
         if not eq or not key.strip() or not value.strip():
             raise ModelError(option, f"{text!r}: allowed KEY=VALUE, e.g. {example}")
+        if key.strip() in out:
+            raise ModelError(option, f"{key.strip()!r} is given twice; allowed: once")
         out[key.strip()] = value.strip()
     return out
 
@@ -489,7 +520,10 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
         lock.unlink(missing_ok=True)
     click.echo("\n".join(summary_lines(summary)))
     click.echo(f"wrote {out_dir}/: {', '.join(files)}, {CHECKPOINT_FILE}")
-    if outcome.interrupted or stop:
+    if stop and not outcome.interrupted:
+        click.echo("the fit had finished when the stop request came: its outputs are "
+                   "complete", err=True)
+    if outcome.interrupted:
         click.echo(f"interrupted: best so far written; continue with --resume --out {out_dir}",
                    err=True)
         return 130

@@ -29,12 +29,24 @@ class ModelError(ValueError):
         super().__init__(f"{field}: {message}" if field else message)
 
     def under(self, prefix: str) -> ModelError:
-        """The same error with ``prefix.`` put in front of the field name."""
+        """The same error with ``prefix.`` put in front of the field name (unless it is
+        already there)."""
+        if self.field == prefix or self.field.startswith((f"{prefix}.", f"{prefix}[")):
+            return self
         return ModelError(f"{prefix}.{self.field}" if self.field else prefix, self.reason)
 
 
 class SimulationError(RuntimeError):
     """A run that could not be completed (non-finite state, divergence)."""
+
+
+def shown(value) -> str:
+    """A value for a message: numbers to 6 significant digits (never 300 of them), other
+    things by repr, cut at 60 characters."""
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        return f"{float(value):.6g}"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def check_range(
@@ -53,7 +65,7 @@ def check_range(
     ``[low, high]``; ``low_open``/``high_open`` exclude an end.
     """
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ModelError(field, f"must be a number, got {value!r}")
+        raise ModelError(field, f"must be a number, got {shown(value)}")
     v = float(value)
     lo_ok = v > low if low_open else v >= low
     hi_ok = v < high if high_open else v <= high
@@ -64,5 +76,5 @@ def check_range(
             + (")" if high_open or high == math.inf else "]")
         )
         u = f" {unit}" if unit else ""
-        raise ModelError(field, f"{value!r} is out of range; allowed {interval}{u}")
+        raise ModelError(field, f"{shown(v)} is out of range; allowed {interval}{u}")
     return v

@@ -63,8 +63,9 @@ def _figure_grid(nrows: int, ncols: int, size):
     return fig, axes
 
 
-def save_figure(fig, path) -> None:
-    """Save a figure atomically (format from the extension) and close it."""
+def save_figure(fig, path, field: str = "plot") -> None:
+    """Save a figure atomically (format from the extension) and close it; a path that cannot
+    be written is a ModelError under ``field``."""
     from pathlib import Path
 
     import matplotlib.pyplot as plt
@@ -73,6 +74,6 @@ def save_figure(fig, path) -> None:
 
     fmt = Path(path).suffix.lstrip(".").lower() or "png"
     try:
-        write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=120))
+        write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=120), field)
     finally:
         plt.close(fig)

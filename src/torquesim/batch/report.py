@@ -79,7 +79,7 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> 
     write_table(out / "sweep_percentiles.csv", bands)
     figure = plot_bands(chain, histories)
     png_path = out / "sweep.png"
-    save_figure(figure, png_path)
+    save_figure(figure, png_path, "--out")
     parameters = [d.path for d in distributions]
     outcomes = [c for c in outcome_columns(chain)
                 if c not in ("estimated_error_deg", "accuracy", "error")]

@@ -139,7 +139,7 @@ def write_outputs(out_dir, problem: FitProblem, outcome: FitOutcome, summary: di
                                             for r, j in enumerate(problem.target.joints)})
     figure.suptitle(f"torquesim fit: {problem.target.source}; RMS "
                     f"{summary['reference_rms_error_deg']:.3f}° (reference solver)")
-    save_figure(figure, out / FIGURE_FILE)
+    save_figure(figure, out / FIGURE_FILE, "--out")
     public = {k: v for k, v in summary.items() if not k.startswith("_")}
     write_text_atomic(out / SUMMARY_FILE, json.dumps(public, indent=2, default=float) + "\n")
     return [MODEL_FILE, MOTION_FILE, STORAGE_FILE, FIGURE_FILE, SUMMARY_FILE]

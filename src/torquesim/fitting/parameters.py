@@ -105,14 +105,23 @@ class ParameterSpace:
             low, high = HARD_LIMITS[_field_of(name)]
             check_range(f"bounds.{name}", self.lower[i], low, high)
             check_range(f"bounds.{name}", self.upper[i], low, high)
-            if self.lower[i] > self.upper[i]:
-                raise ModelError(f"bounds.{name}", f"lower {self.lower[i]:g} > upper "
-                                 f"{self.upper[i]:g}; allowed lower ≤ upper")
+            if self.lower[i] >= self.upper[i]:
+                raise ModelError(f"bounds.{name}", f"lower {self.lower[i]:g} ≥ upper "
+                                 f"{self.upper[i]:g}; allowed lower < upper (to hold a "
+                                 "parameter at one value, freeze it)")
         resolved = {}
         for name, value in self.frozen.items():
             canonical = self.resolve(name, "freeze")
             low, high = HARD_LIMITS[_field_of(canonical)]
             check_range(f"freeze.{name}", value, low, high)
+            i = names.index(canonical)
+            if not self.lower[i] <= value <= self.upper[i]:
+                raise ModelError(f"freeze.{name}", f"{value:g} is outside its bounds; allowed "
+                                 f"[{self.lower[i]:g}, {self.upper[i]:g}] (or change them with "
+                                 "--bound)")
+            if canonical in resolved:
+                raise ModelError(f"freeze.{name}", "given twice (under two names); allowed: "
+                                 "once")
             resolved[canonical] = float(value)
         object.__setattr__(self, "frozen", resolved)
 

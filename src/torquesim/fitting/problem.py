@@ -23,9 +23,13 @@ DEFAULT_METHOD = "imex"
 DEFAULT_STEP = 5.0e-3
 
 
+#: The smallest fit step, s (a fit simulates its model thousands of times).
+MIN_STEP = 1.0e-5
+
+
 def fit_step(duration: float, requested: float) -> tuple[float, int]:
     """The largest step ≤ ``requested`` that divides ``duration``, and the step count."""
-    check_range("step", requested, 0.0, duration, low_open=True, unit="s")
+    check_range("step", requested, MIN_STEP, duration, unit="s")
     n = math.ceil(duration / requested - 1e-9)
     return duration / n, n
 

@@ -55,29 +55,30 @@ DIRECTIONS = {"flexor": 1, "extensor": -1, 1: 1, -1: -1}
 #: One-line documentation written beside each key: unit and allowed range.
 FIELD_DOCS = {
     "duration": "s, simulated time. (0, 600]",
-    "gravity": "m/s^2. [0, inf)",
+    "gravity": "m/s^2. [0, 100]",
     "base_angle": "rad, first joint's zero direction from hanging down. [-pi, pi]",
-    "mass": "kg",
-    "com_distance": "m, proximal joint to centre of mass. [0, inf)",
-    "inertia_about_joint": "kg m^2, about the proximal joint, loads excluded",
-    "length": "m, proximal joint to the next joint. [0, inf)",
+    "mass": "kg. (0, 1000]",
+    "com_distance": "m, proximal joint to centre of mass. [0, 10]",
+    "inertia_about_joint": "kg m^2, about the proximal joint, loads excluded. (0, 1e4]",
+    "length": "m, proximal joint to the next joint. [0, 10]",
     "initial_angle": "rad, 0 = straight/hanging, positive = flexion. [-pi, pi]",
-    "endstop_torque": "N m, passive end-stop scale k_p (0 = none). [0, inf)",
+    "endstop_torque": "N m, passive end-stop scale k_p (0 = none). [0, 1e5]",
     "endstop_angle_scale": "rad, end-stop angular scale s_p. (0, inf)",
     "endstop_lower_angle": "rad, q_lo. [-pi, 2pi]",
     "endstop_upper_angle": "rad, q_hi (> q_lo). [-pi, 2pi]",
     "coordinate": "output column / OpenSim coordinate name",
-    "isometric_torque": "N m, T0. (0, inf)",
-    "eccentric_torque_max": "N m, T_max. (T0, inf)",
-    "max_velocity": "rad/s, omega_max. (0, inf)",
-    "velocity_constant": "rad/s, omega_c of the Hill hyperbola. (0, inf)",
+    "isometric_torque": "N m, T0. (0, 1e4]",
+    "eccentric_torque_max": "N m, T_max. (T0, 10 T0]",
+    "max_velocity": "rad/s, omega_max. (0, 200]",
+    "velocity_constant": "rad/s, omega_c of the Hill hyperbola. (0, 1000]",
     "min_differential_activation": "a_min of d(omega). [0, 1]",
-    "differential_activation_rate": "rad/s, omega_r of d(omega). (0, inf)",
+    "differential_activation_rate": "rad/s, omega_r of d(omega). (0, 1000]",
     "differential_activation_midpoint": "rad/s, omega_1 of d(omega). (-omega_max, omega_max)",
     "optimal_angle": "rad, theta_opt of the torque/angle curve. [-pi, 2pi]",
-    "angle_curvature": "rad^-2, k2 of the torque/angle curve. [0, inf)",
-    "se_stiffness": "N m/rad, series elastic element. (0, inf)",
-    "eccentric_slope_ratio": "eccentric/concentric slope of T_omega at 0 (Yeadon 2006: 4.3)",
+    "angle_curvature": "rad^-2, k2 of the torque/angle curve. [0, 1000]",
+    "se_stiffness": "N m/rad, series elastic element. (0, 1e6]",
+    "eccentric_slope_ratio": "eccentric/concentric slope of T_omega at 0 (Yeadon 2006: 4.3). "
+                             "(0, 100]",
     "ce_damping": "N m s/rad, CE parallel damping beta (Millard 2013; 0 = abstract). [0, 1e4]",
 }
 SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads")
@@ -267,8 +268,13 @@ def model_from_dict(data: dict) -> ChainModel:
         raise ModelError("notes", "must be an array of strings")
     kwargs = {key: _number(key, data[key]) for key in ("duration", "gravity", "base_angle")
               if key in data}
-    return ChainModel(name=_text("name", data.get("name", "model")), segments=tuple(segments),
-                      joints=tuple(joints), units=tuple(units), notes=tuple(notes), **kwargs)
+    model = ChainModel(name=_text("name", data.get("name", "model")), segments=tuple(segments),
+                       joints=tuple(joints), units=tuple(units), notes=tuple(notes), **kwargs)
+    for i, table in enumerate(data["segments"][:-1]):  # a joint hangs from its end
+        if "length" not in table:
+            raise ModelError(f"segments[{i}].length", "is missing: the distance to the next "
+                             "joint, m; allowed [0, 10] (only the last segment may omit it)")
+    return model
 
 
 def load_model(path) -> ChainModel:
@@ -282,15 +288,20 @@ def load_model(path) -> ChainModel:
         raise TypeError(f"path: expected a file name, got {type(path).__name__}")
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark is fine
     except OSError as exc:
         raise ModelError("model", f"cannot read {str(path)!r}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
-        raise ModelError("model", f"{str(path)!r} is not UTF-8 text") from None
+        raise ModelError("model", f"{str(path)!r} is not UTF-8 text; allowed: a TOML model "
+                         "file (docs/model-files.md)") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ModelError("model", f"{str(path)!r} is not valid TOML: {exc}") from None
+    if not data:
+        raise ModelError("model", f"{str(path)!r} is empty; allowed: a TOML model file with "
+                         "[[segments]], [[joints]] and [[units]] (write one with `torquesim "
+                         "model NAME --out FILE`)")
     return model_from_dict(data)
 
 

@@ -16,11 +16,11 @@ from .atomic import write_atomic, write_text_atomic
 TABLE_SUFFIXES = (".csv", ".sto", ".mot")
 
 
-def table_kind(path) -> str:
+def table_kind(path, field: str = "out") -> str:
     """``"csv"`` or ``"sto"`` from the file name; anything else is an error."""
     suffix = Path(path).suffix.lower()
     if suffix not in TABLE_SUFFIXES:
-        raise ModelError("out", f"{str(path)!r}: unknown extension; allowed "
+        raise ModelError(field, f"{str(path)!r}: unknown extension; allowed "
                          f"{', '.join(TABLE_SUFFIXES)}")
     return "csv" if suffix == ".csv" else "sto"
 
@@ -45,12 +45,12 @@ def _write_sto(tmp: Path, columns: dict[str, np.ndarray], name: str,
 
 
 def write_table(path, columns: dict[str, np.ndarray], *, name: str = "torquesim",
-                in_degrees: bool = False) -> Path:
+                in_degrees: bool = False, field: str = "out") -> Path:
     """Write columns (first one ``time``) as CSV or OpenSim storage, atomically."""
-    kind = table_kind(path)
+    kind = table_kind(path, field)
     if kind == "csv":
-        return write_atomic(path, lambda tmp: _write_csv(tmp, columns))
-    return write_atomic(path, lambda tmp: _write_sto(tmp, columns, name, in_degrees))
+        return write_atomic(path, lambda tmp: _write_csv(tmp, columns), field)
+    return write_atomic(path, lambda tmp: _write_sto(tmp, columns, name, in_degrees), field)
 
 
 def manifest(result, **extra) -> dict:
@@ -80,14 +80,26 @@ def manifest(result, **extra) -> dict:
     }
 
 
-def save_result(result, path) -> Path:
-    """Write a result table (CSV or .sto by extension) and ``<path>.manifest.json``."""
+def save_result(result, path, field: str = "path") -> Path:
+    """Write a result table (CSV or .sto by extension) and ``<path>.manifest.json``: both or
+    neither (a manifest that cannot be written removes the table)."""
+    if not all(hasattr(result, name) for name in ("columns", "method", "states", "model")):
+        raise TypeError(f"result: expected a torquesim SimulationResult (from simulate), got "
+                        f"{type(result).__name__}")
+    if not isinstance(path, str | Path):
+        raise TypeError(f"path: expected a file name, got {type(path).__name__}")
     path = Path(path)
-    table_kind(path)
+    table_kind(path, field)
     info = manifest(result)
-    write_table(path, result.columns(), name=f"torquesim {result.method}")
-    write_text_atomic(path.with_name(path.name + ".manifest.json"),
-                      json.dumps(info, indent=2, default=float) + "\n")
+    existed = path.exists()
+    write_table(path, result.columns(), name=f"torquesim {result.method}", field=field)
+    try:
+        write_text_atomic(path.with_name(path.name + ".manifest.json"),
+                          json.dumps(info, indent=2, default=float) + "\n", field)
+    except BaseException:
+        if not existed:
+            path.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -95,11 +107,20 @@ def read_table(path) -> dict[str, np.ndarray]:
     """Read a CSV or OpenSim storage file written by torquesim (or any numeric table with a
     header row) into columns. For .sto/.mot, ``inDegrees`` is returned under ``"_in_degrees"``
     as a 0-d boolean array when present."""
+    if not isinstance(path, str | Path):
+        raise TypeError(f"path: expected a file name, got {type(path).__name__}")
     path = Path(path)
-    lines = path.read_text(encoding="utf-8").splitlines()
+    kind = table_kind(path, "path")
+    try:
+        lines = path.read_text(encoding="utf-8-sig").splitlines()
+    except OSError as exc:
+        raise ModelError("path", f"cannot read {str(path)!r}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise ModelError("path", f"{str(path)!r} is not UTF-8 text; allowed: a CSV or .sto "
+                         "table") from None
     in_degrees = None
     start = 0
-    if table_kind(path) == "sto":
+    if kind == "sto":
         for i, line in enumerate(lines):
             key = line.strip().lower()
             if key.startswith("indegrees="):
@@ -110,8 +131,15 @@ def read_table(path) -> dict[str, np.ndarray]:
         rows = [line.split() for line in lines[start:] if line.strip()]
     else:
         rows = list(csv.reader(lines))
+    if not rows:
+        raise ModelError("path", f"{str(path)!r} has no header row; allowed: a table with "
+                         "named columns")
     header, body = rows[0], rows[1:]
-    data = np.array(body, dtype=float).reshape(len(body), len(header))
+    try:
+        data = np.array(body, dtype=float).reshape(len(body), len(header))
+    except ValueError:
+        raise ModelError("path", f"{str(path)!r}: every row must hold {len(header)} numbers "
+                         "(one per header name)") from None
     out = {name.strip(): data[:, j] for j, name in enumerate(header)}
     if in_degrees is not None:
         out["_in_degrees"] = np.array(in_degrees)

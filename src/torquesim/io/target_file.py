@@ -128,8 +128,10 @@ def read_angle_table(
     wanted = others if columns is None else list(columns(others) if callable(columns)
                                                  else columns)
     for name in wanted:
+        allowed = ", ".join(n for n in names if n.lower() != "time")
+        if name.lower() == "time":
+            raise _fail(path, f"column {name!r} is the time, not an angle; allowed: {allowed}")
         if name not in names:
-            allowed = ", ".join(n for n in names if n.lower() != "time")
             raise _fail(path, f"no column {name!r}; allowed: {allowed}")
     if not wanted:
         raise _fail(path, f"line {header_line}: no angle column beside 'time'")

@@ -69,14 +69,16 @@ class BodyParameters:
 
     def __post_init__(self) -> None:
         pos = dict(low=0.0, low_open=True)
-        check_range("gravity", self.gravity, 0.0, unit="m/s^2")
-        check_range("segment_mass", self.segment_mass, **pos, unit="kg")
-        check_range("segment_com_distance", self.segment_com_distance, **pos, unit="m")
-        check_range("segment_inertia", self.segment_inertia, **pos, unit="kg·m^2")
-        check_range("dumbbell_mass", self.dumbbell_mass, 0.0, unit="kg")
-        check_range("dumbbell_distance", self.dumbbell_distance, **pos, unit="m")
-        check_range("dumbbell_inertia", self.dumbbell_inertia, 0.0, unit="kg·m^2")
-        check_range("endstop_torque", self.endstop_torque, 0.0, unit="N·m")
+        check_range("gravity", self.gravity, 0.0, 100.0, unit="m/s^2")
+        check_range("segment_mass", self.segment_mass, 0.0, 1e3, low_open=True, unit="kg")
+        check_range("segment_com_distance", self.segment_com_distance, 0.0, 10.0, low_open=True,
+                    unit="m")
+        check_range("segment_inertia", self.segment_inertia, 0.0, 1e4, low_open=True,
+                    unit="kg·m^2")
+        check_range("dumbbell_mass", self.dumbbell_mass, 0.0, 1e3, unit="kg")
+        check_range("dumbbell_distance", self.dumbbell_distance, 0.0, 10.0, low_open=True, unit="m")
+        check_range("dumbbell_inertia", self.dumbbell_inertia, 0.0, 1e4, unit="kg·m^2")
+        check_range("endstop_torque", self.endstop_torque, 0.0, 1e5, unit="N·m")
         check_range("endstop_angle_scale", self.endstop_angle_scale, **pos, unit="rad")
         lo = check_range("endstop_lower_angle", self.endstop_lower_angle, -math.pi, 2 * math.pi,
                          unit="rad")

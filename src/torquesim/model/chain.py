@@ -58,6 +58,11 @@ FLEXOR, EXTENSOR = 1, -1
 SPEED_LIMIT_FACTOR = 10.0
 
 
+#: Upper bounds of body parameters: far beyond any human segment, finite so that no value can
+#: overflow the mechanics (kg, m, kg·m²).
+MAX_MASS, MAX_LENGTH, MAX_INERTIA = 1000.0, 10.0, 1.0e4
+
+
 def _check_name(field_name: str, value) -> str:
     if not isinstance(value, str) or not value or not all(c.isalnum() or c == "_"
                                                           for c in value):
@@ -88,9 +93,9 @@ class PointLoad:
 
     def __post_init__(self) -> None:
         _check_name("name", self.name)
-        check_range("mass", self.mass, 0.0, unit="kg")
-        check_range("distance", self.distance, 0.0, unit="m")
-        check_range("inertia", self.inertia, 0.0, unit="kg·m^2")
+        check_range("mass", self.mass, 0.0, MAX_MASS, unit="kg")
+        check_range("distance", self.distance, 0.0, MAX_LENGTH, unit="m")
+        check_range("inertia", self.inertia, 0.0, MAX_INERTIA, unit="kg·m^2")
 
 
 @dataclass(frozen=True)
@@ -121,11 +126,11 @@ class Segment:
 
     def __post_init__(self) -> None:
         _check_name("name", self.name)
-        m = check_range("mass", self.mass, 0.0, low_open=True, unit="kg")
-        c = check_range("com_distance", self.com_distance, 0.0, unit="m")
-        inertia = check_range("inertia_about_joint", self.inertia_about_joint, 0.0,
+        m = check_range("mass", self.mass, 0.0, MAX_MASS, low_open=True, unit="kg")
+        c = check_range("com_distance", self.com_distance, 0.0, MAX_LENGTH, unit="m")
+        inertia = check_range("inertia_about_joint", self.inertia_about_joint, 0.0, MAX_INERTIA,
                               low_open=True, unit="kg·m^2")
-        check_range("length", self.length, 0.0, unit="m")
+        check_range("length", self.length, 0.0, MAX_LENGTH, unit="m")
         if inertia < m * c * c * (1.0 - 1e-12):
             raise ModelError("inertia_about_joint", f"{inertia!r} is below mass·com_distance² "
                              f"= {m * c * c:.6g}; allowed ≥ that (parallel-axis theorem)")
@@ -196,7 +201,7 @@ class Joint:
     def __post_init__(self) -> None:
         _check_name("name", self.name)
         check_range("initial_angle", self.initial_angle, -math.pi, math.pi, unit="rad")
-        check_range("endstop_torque", self.endstop_torque, 0.0, unit="N·m")
+        check_range("endstop_torque", self.endstop_torque, 0.0, 1e5, unit="N·m")
         check_range("endstop_angle_scale", self.endstop_angle_scale, 0.0, low_open=True,
                     unit="rad")
         lo = check_range("endstop_lower_angle", self.endstop_lower_angle, -math.pi,
@@ -209,6 +214,11 @@ class Joint:
         if not self.coordinate:
             object.__setattr__(self, "coordinate", f"{self.name}_flexion")
         _check_name("coordinate", self.coordinate)
+        if self.coordinate == "time" or self.coordinate.startswith(
+                ("torque_", "activation_", "omega_cc_", "theta_cc_")):
+            raise ModelError("coordinate", f"{self.coordinate!r} would clash with another "
+                             "output column; allowed: a name other than time and not starting "
+                             "with torque_, activation_, omega_cc_ or theta_cc_")
 
     def endstop_array(self) -> np.ndarray:
         """[k_p, s_p, q_lo, q_hi] in the layout of :func:`torquesim.model.body.passive_torque`."""
@@ -321,7 +331,7 @@ class ChainModel:
                     else self.name)
         for key in ("segments", "joints", "units", "notes"):
             object.__setattr__(self, key, tuple(getattr(self, key)))
-        check_range("gravity", self.gravity, 0.0, unit="m/s^2")
+        check_range("gravity", self.gravity, 0.0, 100.0, unit="m/s^2")
         check_range("base_angle", self.base_angle, -math.pi, math.pi, unit="rad")
         check_range("duration", self.duration, 0.0, 600.0, low_open=True, unit="s")
         n = len(self.segments)
@@ -368,10 +378,23 @@ class ChainModel:
         return 2 * self.n_joints + self.n_units
 
     def joint_index(self, name: str) -> int:
-        return [j.name for j in self.joints].index(name)
+        """Index of the joint named ``name`` (or with that coordinate name)."""
+        names = [j.name for j in self.joints]
+        if name in names:
+            return names.index(name)
+        coordinates = [j.coordinate for j in self.joints]
+        if name in coordinates:
+            return coordinates.index(name)
+        raise ModelError("joint", f"{name!r} is not a joint of {self.name}; allowed: "
+                         f"{', '.join(names)}")
 
     def unit_index(self, name: str) -> int:
-        return [u.name for u in self.units].index(name)
+        """Index of the unit named ``name``."""
+        names = [u.name for u in self.units]
+        if name not in names:
+            raise ModelError("unit", f"{name!r} is not a unit of {self.name}; allowed: "
+                             f"{', '.join(names)}")
+        return names.index(name)
 
     def state_names(self) -> tuple[str, ...]:
         """Names of the entries of y: coordinates, their speeds, each unit's CE angle."""

@@ -88,21 +88,23 @@ class TorqueGeneratorUnit:
     ce_damping: float = 0.0
 
     def __post_init__(self) -> None:
-        pos = dict(low=0.0, low_open=True)
-        t0 = check_range("isometric_torque", self.isometric_torque, **pos, unit="N·m")
-        check_range("eccentric_torque_max", self.eccentric_torque_max, t0, low_open=True,
-                    unit="N·m (must exceed isometric_torque)")
-        wmax = check_range("max_velocity", self.max_velocity, **pos, unit="rad/s")
-        check_range("velocity_constant", self.velocity_constant, **pos, unit="rad/s")
-        check_range("eccentric_slope_ratio", self.eccentric_slope_ratio, **pos)
-        check_range("min_differential_activation", self.min_differential_activation, 0.0, 1.0)
-        check_range("differential_activation_rate", self.differential_activation_rate, **pos,
+        t0 = check_range("isometric_torque", self.isometric_torque, 0.0, 1e4, low_open=True,
+                         unit="N·m")
+        check_range("eccentric_torque_max", self.eccentric_torque_max, t0, 10 * t0,
+                    low_open=True, unit="N·m (above isometric_torque, at most 10 times it)")
+        wmax = check_range("max_velocity", self.max_velocity, 0.0, 200.0, low_open=True,
+                           unit="rad/s")
+        check_range("velocity_constant", self.velocity_constant, 0.0, 1e3, low_open=True,
                     unit="rad/s")
+        check_range("eccentric_slope_ratio", self.eccentric_slope_ratio, 0.0, 100.0, low_open=True)
+        check_range("min_differential_activation", self.min_differential_activation, 0.0, 1.0)
+        check_range("differential_activation_rate", self.differential_activation_rate, 0.0,
+                    1e3, low_open=True, unit="rad/s")
         check_range("differential_activation_midpoint", self.differential_activation_midpoint,
                     -wmax, wmax, low_open=True, high_open=True, unit="rad/s")
         check_range("optimal_angle", self.optimal_angle, -math.pi, 2 * math.pi, unit="rad")
-        check_range("angle_curvature", self.angle_curvature, 0.0, unit="rad^-2")
-        check_range("se_stiffness", self.se_stiffness, **pos, unit="N·m/rad")
+        check_range("angle_curvature", self.angle_curvature, 0.0, 1e3, unit="rad^-2")
+        check_range("se_stiffness", self.se_stiffness, 0.0, 1e6, low_open=True, unit="N·m/rad")
         check_range("ce_damping", self.ce_damping, 0.0, 1e4, unit="N·m·s/rad")
         _check_monotone(self.to_array())
 
@@ -176,8 +178,10 @@ def _check_monotone(p: np.ndarray) -> None:
     slopes = slopes[:-1]
     if not (np.all(np.diff(values) < 0.0) and np.all(slopes < 0.0)):
         bad = grid[:-1][(np.diff(values) >= 0.0) | (slopes >= 0.0)][0]
+        culprit = ("min_differential_activation" if p[A_MIN] < 0.5
+                   else "differential_activation_rate")
         raise ModelError(
-            "differential_activation_rate",
+            culprit,
             f"d(ω)·T_ω(ω) is not strictly decreasing near ω = {bad:.3f} rad/s, so the CE "
             "velocity is not unique; allowed: parameter sets with a decreasing h "
             "(raise min_differential_activation or differential_activation_rate)",

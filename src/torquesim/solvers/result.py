@@ -109,7 +109,8 @@ class StabilityReport:
                 f"> {RK4_STABILITY_LIMIT:.3f}); the motion is probably wrong although bounded. ")
         safe = self.largest_safe_step
         if self.verified_step == 0.0:
-            return head + "No step down to 1/256 of it passed: use method 'imex' or 'reference'."
+            return head + ("No smaller step tried (down to 1/256 of it, runs of at most 1e6 "
+                           "steps) passed: use method 'imex' or 'reference'.")
         how = ("a run at that step was checked" if self.verified_step is not None
                else "estimated on this run's motion")
         return (head + f"Use a step ≤ {safe * 1e3:.4g} ms ({how}) or method 'imex' "

@@ -138,7 +138,10 @@ def simulate(
 
 
 def _check_state(initial_state, model: ChainModel) -> np.ndarray:
-    y0 = np.asarray(initial_state, dtype=float)
+    try:
+        y0 = np.asarray(initial_state, dtype=float)
+    except (TypeError, ValueError):
+        y0 = np.full(0, np.nan)
     if y0.shape != (model.state_size,) or not np.all(np.isfinite(y0)):
         raise ModelError("initial_state", f"must be {model.state_size} finite numbers "
                          f"({', '.join(model.state_names())})")
@@ -178,7 +181,7 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
         status = "failed"
         message = (f"{label} with step {step * 1e3:g} ms: the state {what} at t = "
                    f"{times[-1]:.6g} s: the step is too large for this motion; "
-                   f"{_advice_text(stability.largest_safe_step)}")
+                   f"{_advice_text(stability.largest_safe_step, implicit=implicit)}")
     elif stability.exceeded:
         message = stability.message()
     else:
@@ -214,18 +217,23 @@ def _out_of_range(model: ChainModel, y) -> str:
     return "left the physically possible range"
 
 
-def _advice_text(safe_step: float, verified: bool = False) -> str:
+def _advice_text(safe_step: float, verified: bool = False, implicit: bool = False) -> str:
+    """What to change after a failed run; ``implicit``: the run's muscles were already
+    implicit (IMEX), so the advice is a smaller step or the reference solver."""
+    others = "method 'reference'" if implicit else \
+        "method 'imex' (implicit muscles) or 'reference'"
     if not math.isfinite(safe_step) or safe_step <= 0.0:
-        return "use method 'imex' (implicit muscles) or 'reference'"
+        return f"use {others}" if not implicit else f"use a smaller step or {others}"
     how = " (a run at that step was checked)" if verified else ""
-    return (f"use a step ≤ {safe_step * 1e3:.4g} ms{how} or method 'imex' (implicit muscles) "
-            "or 'reference'")
+    return f"use a step ≤ {safe_step * 1e3:.4g} ms{how} or {others}"
 
 
 #: The advised step must agree with a run at half of it to this (rad, max over the motion).
 ADVICE_AGREEMENT = 1.0e-3
-#: How many halvings of the step the advice search tries.
+#: How many halvings of the step the advice search tries, and the most steps a trial run of
+#: it may take (beyond that the advice is the implicit methods, given in seconds, not minutes).
 ADVICE_HALVINGS = 8
+ADVICE_MAX_STEPS = 1_000_000
 
 
 def divisor_step(duration: float, step: float) -> float:
@@ -244,10 +252,13 @@ def verified_step(model, packed, y0, method, step, coupling) -> float | None:
     """The step to recommend after a fixed-step run at ``step`` failed or broke the stability
     limit, found by running: the largest of step/2, step/4, … (made to divide the duration)
     whose run succeeds within the stability limit and agrees with a run at half that step to
-    :data:`ADVICE_AGREEMENT` rad. None if no step down to step/2^8 does."""
+    :data:`ADVICE_AGREEMENT` rad. None if no step down to step/2^8 (and no run of at most
+    :data:`ADVICE_MAX_STEPS` steps) does."""
     h = step
     for _ in range(ADVICE_HALVINGS):
         h = divisor_step(model.duration, h / 2)
+        if 2 * model.duration / h > ADVICE_MAX_STEPS:  # the run at half of it included
+            return None
         trial = _fixed_step(model, packed, y0, method, h, coupling)
         if not trial.success or trial.stability.exceeded:
             continue
@@ -264,7 +275,9 @@ def _with_advice(result: SimulationResult, safe: float | None) -> SimulationResu
         message = stability.message()
     else:
         head = result.message.split("; use a step")[0].split("; use method")[0]
-        message = f"{head}; {_advice_text(stability.largest_safe_step, safe is not None)}"
+        advice = _advice_text(stability.largest_safe_step, safe is not None,
+                              math.isinf(stability.limit))
+        message = f"{head}; {advice}"
     return replace(result, stability=stability, message=message)
 
 

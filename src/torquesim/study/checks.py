@@ -32,7 +32,8 @@ def check_techniques() -> list[tuple[str, str, Coupling | None]]:
             ("rk4", "sdirk2")):
         coupling = Coupling(order=order, predictor=predictor, iterations=sweeps,
                             muscle_solver=solver)
-        out.append((coupling.label(), "partitioned", coupling))
+        out.append((f"partitioned[{order},{predictor},iter={sweeps},{solver}]", "partitioned",
+                    coupling))
     return out
 
 

@@ -1,0 +1,161 @@
+"""Regenerate every measured figure and number of the documentation's study page.
+
+    python scripts/make_docs.py            # the study on the default curl and its sensitivity
+                                           # to the SE stiffness (~15 min on 2 cores)
+    python scripts/make_docs.py --check    # only check that docs/study.md holds the blocks
+
+Runs ``torquesim compare`` on the default curl into a temporary folder, copies its figures to
+``docs/figures/`` and rewrites the blocks of ``docs/study.md`` between
+``<!-- generated: NAME -->`` and ``<!-- end generated -->`` from its verdict.csv, results.csv
+and manifest.json (and the default checks' study, ``scripts/accuracy_checks.py``'s grid).
+Nothing in those blocks is typed by hand; the date, machine and load average of the run are
+written beside the numbers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import re
+import shutil
+import sys
+import tempfile
+from datetime import UTC, datetime
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PAGE = ROOT / "docs" / "study.md"
+FIGURES = ("convergence.png", "work_precision.png", "time_constants.png")
+#: The sensitivity figure: ``compare --vary`` of the SE stiffness.
+SENSITIVITY = ("--vary", "se_stiffness=200,600,3000")
+BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)"
+                   r"(<!-- end generated -->)", re.S)
+
+
+def _rows(path: Path) -> list[dict]:
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _ms(text: str) -> str:
+    return f"{float(text):.3g}" if text else "—"
+
+
+def verdict_block(folder: Path, manifest: dict) -> str:
+    lines = ["| accuracy | cheapest (step) | modelled cost (ms) | runner-up (step) | "
+             "cost ratio | measured wall-time ratio (range over repeats) |",
+             "|---|---|---|---|---|---|"]
+    for v in _rows(folder / "verdict.csv"):
+        tie = " (tie)" if v["tie"] == "True" else ""
+        wall = (f"{float(v['wall_time_ratio']):.2g} ({float(v['wall_time_ratio_low']):.2g}–"
+                f"{float(v['wall_time_ratio_high']):.2g})" if v["wall_time_ratio"] else "—")
+        lines.append(f"| {float(v['target_deg']):g}° | {v['cheapest']} "
+                     f"({v['cheapest_setting'] or '—'}){tie} | {_ms(v['modelled_cost_ms'])} | "
+                     f"{v['runner_up'] or '—'} ({v['runner_up_setting'] or '—'}) | "
+                     f"{float(v['cost_ratio']):.2f} | {wall} |"
+                     if v["runner_up"] else
+                     f"| {float(v['target_deg']):g}° | {v['cheapest']} "
+                     f"({v['cheapest_setting'] or '—'}) | {_ms(v['modelled_cost_ms'])} | — | — "
+                     "| — |")
+    calibration = manifest["calibration_s"]
+    names = {"fixed.step.monolithic": "monolithic loop, per step",
+             "fixed.step.partitioned": "partitioned loop, per step (exchange)",
+             "fixed.body": "one body evaluation", "fixed.muscle": "one muscle evaluation",
+             "fixed.newton": "one Newton iteration (IMEX)"}
+    unit_times = ", ".join(f"{text} {calibration[key] * 1e9:.3g} ns"
+                           for key, text in names.items() if key in calibration)
+    load = manifest.get("load_average_1min")
+    return "\n".join([
+        *lines, "",
+        f"Measured with `torquesim compare` on {manifest['created'][:10]}, "
+        f"{manifest['machine'].get('cpus', '?')} cores, load average "
+        f"{'unknown' if load is None else f'{load:.2f}'} at the end of the run "
+        f"(torquesim {manifest['torquesim_version']}). Unit times calibrated in that run: "
+        f"{unit_times}.", ""])
+
+
+def limits_block(folder: Path, manifest: dict) -> str:
+    from torquesim.study.compare import observed_order
+    from torquesim.study.report import _limit_text
+
+    rows = []
+    for r in _rows(folder / "results.csv"):
+        r = dict(r)
+        r["h_s"] = float(r["h_s"]) if r["h_s"] else None
+        r["max_error_rad"] = float(r["max_error_rad"])
+        r["stable"] = r["stable"] == "True"
+        r["guard_exceeded"] = r["guard_exceeded"] == "True"
+        rows.append(r)
+    smooth = manifest.get("smooth_case_orders", {})
+    lines = ["| technique | stability limit | observed order (curl) | order on the smooth case |",
+             "|---|---|---|---|"]
+    for name in dict.fromkeys(r["technique"] for r in rows):
+        if not any(r["technique"] == name and r["h_s"] for r in rows):
+            continue
+        order = observed_order(rows, name)
+        s = smooth.get(name)
+        lines.append(f"| {name} | {_limit_text(rows, name)} | "
+                     f"{'none (no asymptotic range)' if order is None else f'{order:.2f}'} | "
+                     f"{'—' if s is None else f'{s:.2f}'} |")
+    return "\n".join([*lines, ""])
+
+
+def checks_block() -> str:
+    import torquesim as ts
+    from torquesim.study.checks import RIGHT_RAD, WRONG_RAD, check_study
+
+    counts = {"wrong": 0, "missed": 0, "right": 0, "alarms": 0, "runs": 0}
+    for preset in ("builtin:elbow-curl", "builtin:arm-raise"):
+        for r in check_study(ts.load_model(preset)):
+            counts["runs"] += 1
+            counts["wrong"] += r["max_error_rad"] > WRONG_RAD
+            counts["missed"] += r["outcome"] == "missed"
+            counts["right"] += r["max_error_rad"] <= RIGHT_RAD
+            counts["alarms"] += r["outcome"] == "false alarm"
+    return (f"Of {counts['runs']} runs (the curl and the arm raise; monolithic, IMEX and all 24 "
+            "coupling variants; steps 20, 10, 5, 2, 1, 0.5 and 0.25 ms) with `simulate()`'s "
+            f"default arguments, {counts['wrong']} end more than {WRONG_RAD:g} rad off the "
+            f"reference and {counts['missed']} of them are silent; of the {counts['right']} "
+            f"within {RIGHT_RAD:g} rad, {counts['alarms']} carry a warning (measured "
+            f"{datetime.now(UTC).date()}, `python scripts/accuracy_checks.py` lists them).\n")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true",
+                        help="only check that docs/study.md has every generated block")
+    args = parser.parse_args()
+    text = PAGE.read_text(encoding="utf-8")
+    found = {m.group("name") for m in BLOCK.finditer(text)}
+    wanted = {"study-verdict", "study-limits", "default-checks"}
+    if found != wanted:
+        sys.exit(f"docs/study.md: generated blocks {sorted(found)}; expected {sorted(wanted)}")
+    if args.check:
+        return
+    from torquesim.cli import main as torquesim
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp) / "compare"
+        code = torquesim(["compare", "--out", str(folder), "--quiet"])
+        if code:
+            sys.exit(f"torquesim compare failed (exit {code})")
+        manifest = json.loads((folder / "manifest.json").read_text())
+        blocks = {"study-verdict": verdict_block(folder, manifest),
+                  "study-limits": limits_block(folder, manifest),
+                  "default-checks": checks_block()}
+        for name in FIGURES:
+            shutil.copyfile(folder / name, ROOT / "docs" / "figures" / name)
+        vary = Path(tmp) / "vary"
+        code = torquesim(["compare", *SENSITIVITY, "--out", str(vary), "--quiet"])
+        if code:
+            sys.exit(f"torquesim compare --vary failed (exit {code})")
+        shutil.copyfile(vary / "sensitivity.png", ROOT / "docs" / "figures" / "sensitivity.png")
+    PAGE.write_text(BLOCK.sub(lambda m: m.group(1) + blocks[m.group("name")] + m.group(4),
+                              text), encoding="utf-8")
+    print(f"rewrote {PAGE.relative_to(ROOT)} ({', '.join(sorted(blocks))}) and "
+          f"docs/figures/{{{','.join((*FIGURES, 'sensitivity.png'))}}}")
+
+
+if __name__ == "__main__":
+    main()
