@@ -63,8 +63,10 @@ def verdict_block(folder: Path, manifest: dict) -> str:
              "fixed.step.partitioned": "partitioned loop, per step (exchange)",
              "fixed.body": "one body evaluation", "fixed.muscle": "one muscle evaluation",
              "fixed.newton": "one Newton iteration (IMEX)"}
-    unit_times = ", ".join(f"{text} {calibration[key] * 1e9:.3g} ns"
-                           for key, text in names.items() if key in calibration)
+    unit_times = ", ".join(
+        f"{text} {calibration[key] * 1e9:.3g} ns" if calibration[key] > 0 else
+        f"{text} not resolved (absorbed by the others)"
+        for key, text in names.items() if key in calibration)
     load = manifest.get("load_average_1min")
     return "\n".join([
         *lines, "",

@@ -205,3 +205,21 @@ def test_a_step_too_coarse_for_the_activation_ramps_is_reported(model):
     coarse = ts.simulate(model, "imex", 0.1)
     assert "activation is not resolved" in coarse.message and "≤ 30 ms" in coarse.message
     assert ts.simulate(model, "imex", 0.02).message == ""
+
+
+def test_the_coupling_jump_is_the_exchange_error_and_shrinks_as_it_is_iterated():
+    """The recorded jumps between what one part assumed of the other over a step and what the
+    other gave: zero angle jump when the muscles see the body's new angle (body first), a
+    torque jump that iterating the exchange drives towards zero."""
+    model = ts.default_model().replace(duration=0.5)
+
+    def jumps(**coupling):
+        run = ts.simulate(model, "partitioned", 1e-4, coupling=ts.Coupling(**coupling),
+                          tolerance=None)
+        return run.settings["coupling_jump"]
+
+    plain, iterated = jumps(), jumps(iterations=3)
+    assert plain["torque_jump_integral_nms"] > 0 and plain["angle_jump_sum_rad"] > 0
+    assert iterated["torque_jump_integral_nms"] < 1e-2 * plain["torque_jump_integral_nms"]
+    assert jumps(order="body-first")["angle_jump_sum_rad"] == 0.0
+    assert 0 < plain["largest_at_s"] <= 0.5

@@ -283,8 +283,10 @@ def compare(model_path, steps, repeats, out_dir, vary, quiet):
         for value in vary_values:
             picks = [r for r in summary if r["value"] == value]
             smallest = min(values) * 1e3
+            largest = max(values) * 1e3
             limits = ", ".join(f"{r['technique']} " + (
-                f"{r['stability_limit_s'] * 1e3:g} ms" if r["stability_limit_s"]
+                ("≥ " if r["stability_limit_s"] * 1e3 >= largest else "")
+                + f"{r['stability_limit_s'] * 1e3:g} ms" if r["stability_limit_s"]
                 else f"< {smallest:g} ms") for r in picks if r["technique"] in
                 {"monolithic", "partitioned", "partitioned[linear]", "imex"})
             winners = ", ".join(f"{t:g}°: {picks[0][f'cheapest_{t:g}deg'] or 'none'}"

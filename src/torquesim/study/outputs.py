@@ -85,7 +85,8 @@ def calibration_text(coefficients: dict[str, float]) -> dict[str, str]:
              "fixed.newton": "one Newton iteration of an implicit unit equation",
              "scipy.step": "SciPy: per-step overhead", "scipy.call": "SciPy: one right-hand side "
              "call (from Python)", "scipy.lu": "SciPy: one LU factorisation"}
-    return {names[k]: f"{v * 1e9:.4g} ns" for k, v in coefficients.items() if k in names}
+    return {names[k]: f"{v * 1e9:.4g} ns" if v > 0 else "not resolved (absorbed by the others)"
+            for k, v in coefficients.items() if k in names}
 
 
 def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=None,

@@ -141,7 +141,7 @@ def plot_time_constants(reference):
     from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
 
     taus = reference.time_constants()
-    fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, constrained_layout=True)
+    fig, (ax0, ax1) = plt.subplots(2, 1, figsize=(8, 7), sharex=True, layout="constrained")
     for joint in reference.model.joints:
         ax0.plot(reference.time, np.degrees(reference.angle(joint.name)),
                  label=joint.coordinate)
@@ -155,20 +155,22 @@ def plot_time_constants(reference):
     finite = smallest[np.isfinite(smallest)]
     if finite.size:
         tau_min = float(np.min(finite))
-        i_min = int(np.nanargmin(np.where(np.isfinite(smallest), smallest, np.nan)))
-        for value, text in ((tau_min, f"min τ = {tau_min * 1e3:.3g} ms"),
-                            (RK4_STABILITY_LIMIT * tau_min,
-                             f"2.785·min τ = {RK4_STABILITY_LIMIT * tau_min * 1e3:.3g} ms")):
+        for value, text, where in ((tau_min, f"min τ = {tau_min * 1e3:.3g} ms", "top"),
+                                   (RK4_STABILITY_LIMIT * tau_min,
+                                    f"2.785·min τ = {RK4_STABILITY_LIMIT * tau_min * 1e3:.3g} ms",
+                                    "bottom")):
             ax1.axhline(value * 1e3, color="grey", lw=0.6)
-            ax1.annotate(text, (reference.time[i_min], value * 1e3), xytext=(6, 3),
-                         textcoords="offset points", fontsize="small")
+            ax1.text(1.0, value * 1e3, f" {text} ", transform=ax1.get_yaxis_transform(),
+                     ha="right", va=where, fontsize="small",
+                     bbox={"facecolor": "white", "edgecolor": "none", "pad": 1.0})
     ax1.set_ylabel("CE time constant τ (ms)")
     ax1.set_xlabel("time (s)")
     ax1.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
     ax1.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax1.yaxis.set_minor_locator(NullLocator())
-    ax1.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax1.grid(alpha=0.3, which="both")
+    fig.legend(*ax1.get_legend_handles_labels(), fontsize="small", loc="outside lower center",
+               ncols=2)
     return fig
 
 
