@@ -18,7 +18,11 @@ def run(argv, capsys):
 def test_simulate_prints_a_summary(capsys):
     code, out, err = run(["simulate", "--duration", "1.5"], capsys)
     assert code == 0
-    assert "elbow_flexion peak 138.7" in out and "steps         15000" in out
+    assert "elbow_flexion min 10.0000 deg at t = 0.0000 s, peak 138.7" in out
+    assert "steps         15000" in out
+    # the stability line: τ_min and the limit it sets, each named (0.2 printed
+    # "limit 2.785 tau_min = 0.411 ms", which reads as τ_min = 0.411 ms)
+    assert "τ_min 0.148 ms; RK4 limit 2.785·τ_min = 0.411 ms" in out
     assert err == ""
 
 
@@ -122,3 +126,35 @@ def test_fit_of_a_model_file_needs_a_target(tmp_path, capsys):
 def test_unknown_preset_lists_the_allowed_ones(capsys):
     code, _, err = run(["simulate", "--model", "builtin:squat"], capsys)
     assert code == 2 and "builtin:arm-raise" in err
+
+
+def test_a_cold_start_is_announced_before_the_pause(capsys, monkeypatch):
+    """Numba's disk cache empty: one line says the integrators are being compiled, once per
+    install; with the cache on disk nothing is said."""
+    import torquesim.solvers.fixed_step as fs
+
+    monkeypatch.setattr(fs, "compiled_on_disk", lambda *kernels: False)
+    assert main(["simulate", "--duration", "0.05"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("compiling the integrators with Numba (once per install")
+    monkeypatch.undo()
+    assert fs.compiled_on_disk()  # this run compiled or loaded them
+    assert main(["simulate", "--duration", "0.05"]) == 0
+    assert "compiling" not in capsys.readouterr().err
+
+
+def test_progress_reaches_a_log_at_least_every_ten_seconds(capsys, monkeypatch):
+    """Not a terminal (a log file, CI): a progress line whenever 10 s passed since the last
+    one (the clock is injected, not waited for)."""
+    from torquesim.cli import Progress
+
+    reporter = Progress(quiet=False)
+    now = [0.0]
+    reporter.clock = lambda: now[0]
+    reporter.last_line = 0.0
+    reporter.bars = False
+    for done in range(1, 31):
+        now[0] = done * 1.0  # one second per step
+        reporter.step(done, 30, "least squares")
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln]
+    assert lines == ["least squares: 10/30", "least squares: 20/30", "least squares: 30/30"]

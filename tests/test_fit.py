@@ -455,6 +455,13 @@ def test_fit_cli_writes_loadable_outputs_and_resumes(tmp_path, capsys):
     fitted = ts.load_model(out / "fitted_model.toml")
     assert fitted.duration == pytest.approx(1.0)
     assert math.degrees(fitted.joints[0].initial_angle) == pytest.approx(20.0)
+    # the model file records the fit that made it (target, errors, settings), then the
+    # starting model's sources
+    assert fitted.notes[0].startswith("Activation ramps fitted by torquesim")
+    assert str(target) in fitted.notes[0]
+    rms = summary["joints"]["elbow"]["reference_rms_error_deg"]
+    assert f"elbow RMS {rms:.3f} deg (reference)" in fitted.notes[0]
+    assert "seed 1" in fitted.notes[1] and len(fitted.notes) > 2
     table = ts.read_table(out / "fit_motion.csv")
     assert list(table)[:4] == ["time", "elbow_target_deg", "elbow_fitted_deg",
                                "elbow_reference_deg"]

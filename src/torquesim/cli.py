@@ -82,8 +82,11 @@ def cli():
                    "tolerance) and warn above this many degrees; 0 turns the estimate off.")
 def simulate(model_path, method, step, duration, out_path, plot_path, tolerance):
     """Simulate the model and print a summary (or write --out / --plot)."""
+    import numpy as np
+
     from .io.model_file import load_model
     from .solvers import simulate as run
+    from .solvers.fixed_step import RK4_STABILITY_LIMIT as RK4_LIMIT
 
     _check_output(out_path, (".csv", ".sto", ".mot"), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
@@ -91,6 +94,7 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
     fixed = method != "reference"
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
     _announce_size(model, method, step, duration, out_path)
+    _announce_compiling()
     result = run(model, method, step, duration=duration, tolerance=check if fixed else None)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
@@ -111,10 +115,11 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
         f"duration      {result.time[-1]:g} s",
     ]
     for joint in result.model.joints:
-        peak, t_peak = result.peak(joint.name)
-        lines.append(f"{joint.coordinate:13s} peak {math.degrees(peak):.4f} deg at t = "
-                     f"{t_peak:.4f} s, final {math.degrees(result.angle(joint.name)[-1]):.4f} "
-                     "deg")
+        angle = result.angle(joint.name)
+        low, high = int(np.argmin(angle)), int(np.argmax(angle))
+        lines.append(f"{joint.coordinate:13s} min {math.degrees(angle[low]):.4f} deg at t = "
+                     f"{result.time[low]:.4f} s, peak {math.degrees(angle[high]):.4f} deg at "
+                     f"t = {result.time[high]:.4f} s, final {math.degrees(angle[-1]):.4f} deg")
     lines += [
         f"steps         {result.cost.steps if result.cost.steps >= 0 else 'adaptive'}",
         f"rhs evals     body {result.cost.rhs_body}, muscle {result.cost.rhs_muscle}",
@@ -126,12 +131,14 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
                      f"({result.settings['error_estimate']}; tolerance {tolerance:g} deg)")
     report = result.stability
     if report is not None:
-        limit = ("muscles implicit, no step limit from tau" if math.isinf(report.limit)
-                 else f"limit 2.785 tau_min = {report.largest_safe_step * 1e3:.3g} ms"
+        tau_min = report.step / report.max_step_ratio if report.max_step_ratio > 0 else \
+            math.inf
+        limit = ("muscles implicit, no step limit from τ" if math.isinf(report.limit)
+                 else f"RK4 limit 2.785·τ_min = {RK4_LIMIT * tau_min * 1e3:.3g} ms"
                  if report.verified_step is None else
                  f"checked safe step {report.largest_safe_step * 1e3:.4g} ms")
-        lines.append(f"stability     max step/tau {report.max_step_ratio:.3g} "
-                     f"({report.unit}); {limit}")
+        lines.append(f"stability     max step/τ {report.max_step_ratio:.3g} "
+                     f"({report.unit}), τ_min {tau_min * 1e3:.3g} ms; {limit}")
     if out_path:
         lines.append(f"wrote         {out_path}")
     if plot_path:
@@ -143,6 +150,16 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
 #: before it starts (with how to make it smaller).
 LARGE_RUN_STEPS = 2_000_000
 LARGE_TABLE_BYTES = 200e6
+
+
+def _announce_compiling(*kernels) -> None:
+    """One line before the pause when the compiled loops (and ``kernels``) are not on disk
+    yet."""
+    from .solvers.fixed_step import compiled_on_disk
+
+    if not compiled_on_disk(*kernels):
+        click.echo("compiling the integrators with Numba (once per install, about a minute; "
+                   "later runs start in seconds) ...", err=True)
 
 
 def _announce_size(model, method, step, duration, out_path) -> None:
@@ -191,10 +208,17 @@ class Progress:
     starts a new bar); ``done == total == 0`` announces a phase by its ``label``.
     """
 
+    #: Without a terminal (a log file, CI), a progress line at least this often, s.
+    LOG_EVERY = 10.0
+
     def __init__(self, quiet: bool):
+        import time
+
         self.quiet = quiet
         self.bars = not quiet and sys.stderr.isatty()
         self.bar = None
+        self.clock = time.monotonic
+        self.last_line = self.clock()
 
     def say(self, message: str) -> None:
         if self.quiet:
@@ -205,6 +229,7 @@ class Progress:
             tqdm.write(message, file=sys.stderr)
         else:
             click.echo(message, err=True)
+        self.last_line = self.clock()
 
     def step(self, done: int, total: int, label: str) -> None:
         if total <= 0:
@@ -212,6 +237,8 @@ class Progress:
             self.say(label)
             return
         if not self.bars:
+            if not self.quiet and self.clock() - self.last_line >= self.LOG_EVERY:
+                self.say(f"{label}: {done}/{total}")
             return
         from tqdm import tqdm
 
@@ -490,6 +517,10 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
     created = not out.exists()
     out.mkdir(exist_ok=True)
     lock = take_lock(out)
+    if not quiet:
+        from .fitting.objective import residual_population
+
+        _announce_compiling(residual_population)
     stop = []
 
     def request_stop(signum, _frame):

@@ -373,8 +373,8 @@ class _Run:
 
     def __init__(self, problem, settings, checkpoint, say, tick, should_stop):
         self.problem, self.settings = problem, settings
-        self.checkpoint, self.say, self.tick, self.should_stop = (checkpoint, say, tick,
-                                                                  should_stop)
+        self.checkpoint, self.say, self.should_stop = checkpoint, say, should_stop
+        self._tick, self._last_tick = tick, None
         self.space = problem.space
         self.free = self.space.free
         self.start = time.perf_counter()
@@ -398,7 +398,23 @@ class _Run:
             self.interrupted = True
         return self.interrupted or self.out_of_time()
 
+    @property
+    def tick(self):
+        """The caller's ``tick(stage, done, total)``, remembering the last call so that every
+        simulation batch can repeat it (a log then hears from a long stage every few
+        seconds)."""
+        if self._tick is None:
+            return None
+
+        def tick(stage, done, total):
+            self._last_tick = (stage, done, total)
+            self._tick(stage, done, total)
+
+        return tick
+
     def keep(self, x_free, score) -> None:
+        if self._tick is not None and self._last_tick is not None:
+            self._tick(*self._last_tick)
         state = self.state
         if score < state["best_score"]:
             state["best_score"] = float(score)
@@ -485,6 +501,8 @@ class _Run:
             return
         points = self.starting_points()
         screened = np.asarray(state["population"], dtype=float).reshape(-1, self.free.size + 1)
+        if self.tick:
+            self.tick("least squares", int(state["generations_done"]), settings.starts + 1)
         for k in range(int(state["generations_done"]), settings.starts):
             result = self._solve(points[k], min(SCREEN_EVALUATIONS, settings.iterations))
             if result is None:

@@ -128,7 +128,8 @@ def write_outputs(out_dir, problem: FitProblem, outcome: FitOutcome, summary: di
 
     out = Path(out_dir)
     fitted, reference = summary["_results"]
-    save_model(fitted.model, out / MODEL_FILE)
+    save_model(fitted.model.replace(notes=(*fit_notes(summary), *fitted.model.notes)),
+               out / MODEL_FILE, "--out")
     write_table(out / MOTION_FILE, {k if k == "time" or k.startswith("activation") else
                                     f"{k}_deg": v for k, v in
                                     motion_columns(problem, summary, "deg").items()})
@@ -143,6 +144,22 @@ def write_outputs(out_dir, problem: FitProblem, outcome: FitOutcome, summary: di
     public = {k: v for k, v in summary.items() if not k.startswith("_")}
     write_text_atomic(out / SUMMARY_FILE, json.dumps(public, indent=2, default=float) + "\n")
     return [MODEL_FILE, MOTION_FILE, STORAGE_FILE, FIGURE_FILE, SUMMARY_FILE]
+
+
+def fit_notes(summary: dict) -> list[str]:
+    """What the fitted model file says of the fit that made it: target, date, errors per
+    joint (the fit's and the reference re-simulation's), technique and search."""
+    joints = "; ".join(f"{j} RMS {e['reference_rms_error_deg']:.3f} deg (reference), "
+                       f"{e['rms_error_deg']:.3f} deg (fit)"
+                       for j, e in summary["joints"].items())
+    settings = summary["settings"]
+    return [f"Activation ramps fitted by torquesim {summary['torquesim_version']} on "
+            f"{summary['created']} to {summary['target']['source']} "
+            f"({summary['target']['samples']} samples, {summary['target']['duration_s']:g} s): "
+            f"{joints}.",
+            f"Fit settings: {summary['method']} at {summary['step_s'] * 1e3:.4g} ms, "
+            f"{summary['search']} search, seed {settings.get('seed')}, "
+            f"{summary['simulations']} simulations; the notes below are the starting model's."]
 
 
 def summary_lines(summary: dict) -> list[str]:

@@ -360,6 +360,7 @@ def model_to_toml(model) -> str:
     return "\n".join(lines) + "\n"
 
 
-def save_model(model, path) -> Path:
-    """Write the model TOML atomically."""
-    return write_text_atomic(path, model_to_toml(model))
+def save_model(model, path, field: str = "out") -> Path:
+    """Write the model TOML atomically (a path that cannot be written is a ModelError under
+    ``field``)."""
+    return write_text_atomic(path, model_to_toml(model), field)

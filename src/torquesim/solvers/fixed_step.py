@@ -512,3 +512,15 @@ def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, implicit, b, 
 def new_stats() -> np.ndarray:
     """A zeroed stats array for the loops."""
     return np.zeros(STATS_SIZE)
+
+
+def compiled_on_disk(*kernels) -> bool:
+    """Whether the solver loops (and any other compiled ``kernels``) are in Numba's disk cache
+    (else the first run compiles them: about a minute, once per install)."""
+    import os
+
+    try:
+        return all(os.path.exists(kernel._cache._cache_file._index_path)
+                   for kernel in (rk4_monolithic, rk4_partitioned, *kernels))
+    except AttributeError:  # another Numba: assume cached rather than say something wrong
+        return True
