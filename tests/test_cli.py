@@ -158,3 +158,25 @@ def test_progress_reaches_a_log_at_least_every_ten_seconds(capsys, monkeypatch):
         reporter.step(done, 30, "least squares")
     lines = [ln for ln in capsys.readouterr().err.splitlines() if ln]
     assert lines == ["least squares: 10/30", "least squares: 20/30", "least squares: 30/30"]
+
+
+def test_every_option_has_help_and_a_real_default():
+    """What the CLI reference (mkdocs-click) shows: no click sentinel as a default, no option
+    without help ("N/A"), whole-sentence summaries that are not cut; -h works everywhere."""
+    import click
+
+    from torquesim.cli import cli
+
+    def walk(command, path):
+        ctx = click.Context(command)
+        for param in command.get_params(ctx):
+            assert "Sentinel" not in repr(param.default), (path, param.name)
+            if isinstance(param, click.Option):
+                assert param.help, (path, param.opts)
+        for name, sub in getattr(command, "commands", {}).items():
+            summary = sub.get_short_help_str(limit=45)
+            assert summary.endswith(".") and not summary.endswith("..."), (name, summary)
+            walk(sub, f"{path} {name}")
+
+    walk(cli, "torquesim")
+    assert main(["batch", "sweep", "-h"]) == 0

@@ -46,7 +46,10 @@ def _check_output(path: str | None, suffixes, option: str) -> None:
         raise ModelError(option, f"directory {str(p.parent)!r} does not exist")
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+CONTEXT = {"help_option_names": ["-h", "--help"]}
+
+
+@click.group(context_settings=CONTEXT)
 @click.version_option(package_name="torquesim")
 def cli():
     """torquesim: torque-driven simulation of planar chains (default: an elbow dumbbell
@@ -57,7 +60,7 @@ def cli():
     """
 
 
-@cli.command()
+@cli.command(short_help="Simulate a model; print or write the motion.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
               help="Model: a TOML file or a preset builtin:elbow-curl|knee-extension|arm-raise "
                    "(see 'torquesim model').")
@@ -184,7 +187,7 @@ def _announce_size(model, method, step, duration, out_path) -> None:
                    "makes it smaller", err=True)
 
 
-@cli.command()
+@cli.command(short_help="Write a model as an editable TOML file.")
 @click.argument("name", default="elbow-curl")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False), required=True,
               help="Where to write the model TOML.")
@@ -265,7 +268,7 @@ def _parse_steps(text: str) -> tuple[float, ...]:
     return values
 
 
-@cli.command()
+@cli.command(short_help="The study: every technique, accuracy vs cost.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
               help="Model TOML file or builtin:NAME preset.")
 @click.option("--steps", default="20,10,5,2,1,0.5,0.2,0.1,0.05", show_default=True,
@@ -381,7 +384,9 @@ _SEARCH_OPTIONS = (
                  help="least-squares: starting points screened (inverse dynamics + perturbed)."),
     click.option("--iterations", type=click.IntRange(1, 100_000), default=200, show_default=True,
                  help="least-squares: residual evaluations refining the best start."),
-    click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True),
+    click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
+                 help="Random seed of the perturbed starts (and of the global search): the "
+                      "same seed gives the same fit."),
 )
 
 
@@ -391,7 +396,7 @@ def _search_options(fn):
     return fn
 
 
-@cli.command()
+@cli.command(short_help="Fit activation ramps to a measured motion.")
 @click.option("--target", "target_spec", default=None,
               help="Measured motion: a .csv (a time column and angle columns) or OpenSim "
                    ".mot/.sto (inverse kinematics: one column per coordinate), or a built-in "
@@ -563,7 +568,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
     return 0
 
 
-@cli.group()
+@cli.group(short_help="Many fits or a parameter sweep, on Dask.")
 def batch():
     """Many runs on Dask distributed: batch fits and parameter sweeps.
 
@@ -594,7 +599,7 @@ def _batch_progress(quiet: bool, label: str):
     return reporter, progress
 
 
-@batch.command("fit")
+@batch.command("fit", short_help="Fit many targets, one folder each.")
 @click.argument("targets", nargs=-1)
 @click.option("--manifest", type=click.Path(dir_okay=False),
               help="CSV with columns target,model,column (model and column optional) "
@@ -603,7 +608,8 @@ def _batch_progress(quiet: bool, label: str):
               help="Model for every target without one in the manifest.")
 @_search_options
 @click.option("--weight-effort", type=click.FloatRange(0.0, 1e6), default=0.0,
-              show_default=True)
+              show_default=True, help="Weight (deg² per activation²) of the effort term, as "
+                                      "in `fit`.")
 @click.option("--units", type=click.Choice(["deg", "rad"]),
               help="Units of CSV targets (default deg; .mot/.sto: inDegrees).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="batch-out",
@@ -639,8 +645,9 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
     return 1 if len(failed) else 0
 
 
-@batch.command("sweep")
-@click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True)
+@batch.command("sweep", short_help="Simulate over parameter distributions.")
+@click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
+              help="Model: a TOML file or builtin:elbow-curl|knee-extension|arm-raise.")
 @click.option("--vary", multiple=True, required=True, metavar="PATH=KIND(...)",
               help="A model field and its distribution (repeatable): uniform(LOW,HIGH), "
                    "normal(MEAN,SD), lognormal(MEDIAN,SIGMA) or grid(LOW,HIGH,N); PATH as in "
@@ -648,16 +655,21 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
                    "on the elbow), forearm_hand.dumbbell.mass, elbow.initial_angle.")
 @click.option("--samples", type=click.IntRange(1, 10_000_000), default=1000,
               show_default=True, help="Monte Carlo samples (crossed with any grids).")
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
+              help="Random seed of the samples (drawn in the client: the same table whatever "
+                   "the workers).")
 @click.option("--sobol", is_flag=True, help="Scrambled Sobol' points instead of random.")
 @click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
-              default="imex", show_default=True)
-@click.option("--step", type=TIME, default="5ms", show_default=True)
+              default="imex", show_default=True,
+              help="Technique of every sample (as in `simulate`).")
+@click.option("--step", type=TIME, default="5ms", show_default=True,
+              help="Fixed step of every sample (s; ms/us suffixes); must divide the duration.")
 @click.option("--chunk", type=click.IntRange(1, 1_000_000), default=None,
               help="Samples per Dask task (default: an even split giving every worker at "
                    "least 4 tasks, at most 1000 samples each).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="sweep-out",
-              show_default=True)
+              show_default=True, help="Directory for sweep.csv, the percentile bands, the rank "
+                                      "correlations, sweep.html and the finished chunks.")
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Each sample's max angle error is estimated (against a run at twice the "
                    "step, half a run's work) and the sample marked inaccurate above this many "
@@ -707,6 +719,24 @@ def _tolerance_rad(degrees: float, option: str) -> float:
     from .errors import check_range
 
     return math.radians(check_range(option, degrees, 0.0, 180.0, low_open=True, unit="deg"))
+
+
+def _explicit_defaults(command: click.Command) -> None:
+    """Options without a default get their real one (None, False for a flag, () for a
+    repeatable option) instead of click's internal sentinel, so that help pages and the
+    generated CLI reference show what a user gets."""
+    # made once per command, then kept: with the group's option names (-h, --help)
+    help_option = command.get_help_option(click.Context(command, **CONTEXT))
+    for param in [*command.params, *([help_option] if help_option else [])]:
+        if type(param.default).__name__ == "Sentinel":
+            flag = isinstance(param, click.Option) and param.is_flag
+            many = param.multiple or param.nargs == -1
+            param.default = False if flag else (() if many else None)
+    for sub in getattr(command, "commands", {}).values():
+        _explicit_defaults(sub)
+
+
+_explicit_defaults(cli)
 
 
 def main(argv=None) -> int:
