@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import re
 import sys
@@ -586,6 +587,29 @@ def _engine_options(fn):
     return click.option("--quiet", is_flag=True, help="No progress bar or lines.")(fn)
 
 
+@contextlib.contextmanager
+def _interruptible():
+    """SIGINT and SIGTERM raise KeyboardInterrupt in this process while the batch runs, even
+    when it was started with SIGINT ignored (a background job of a script): the batch then
+    cancels, stops its tasks, writes what finished and exits 130."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(_signum, _frame):
+        raise KeyboardInterrupt
+
+    previous = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def _batch_progress(quiet: bool, label: str):
     """A :class:`Progress` and the ``progress(done, total)`` callback of batch work: the
     bar on a terminal, a line per finished task otherwise."""
@@ -627,10 +651,12 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
 
     reporter, progress = _batch_progress(quiet, "fits")
     try:
-        table = fit_many(targets, out=out_dir, model=model_path, manifest=manifest,
-                         method=method, step=step, search=search, seed=seed, starts=starts,
-                         iterations=iterations, weight_effort=weight_effort, units=units,
-                         workers=workers, scheduler=scheduler, progress=progress)
+        with _interruptible():
+            table = fit_many(targets, out=out_dir, model=model_path, manifest=manifest,
+                             method=method, step=step, search=search, seed=seed,
+                             starts=starts, iterations=iterations, weight_effort=weight_effort,
+                             units=units, workers=workers, scheduler=scheduler,
+                             progress=progress)
     except KeyboardInterrupt:
         reporter.close()
         click.echo(f"interrupted: finished fits are in {out_dir}/batch.csv; run the same "
@@ -687,10 +713,12 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
 
     reporter, progress = _batch_progress(quiet, "chunks")
     try:
-        table, _ = sweep(model_path, vary, samples=samples, seed=seed, sobol=sobol,
-                         method=method, step=step, out=out_dir, chunk=chunk, workers=workers,
-                         scheduler=scheduler, progress=progress, overwrite=overwrite,
-                         tolerance=_tolerance_rad(tolerance, "--tolerance"))
+        with _interruptible():
+            table, _ = sweep(model_path, vary, samples=samples, seed=seed, sobol=sobol,
+                             method=method, step=step, out=out_dir, chunk=chunk,
+                             workers=workers, scheduler=scheduler, progress=progress,
+                             overwrite=overwrite,
+                             tolerance=_tolerance_rad(tolerance, "--tolerance"))
     except KeyboardInterrupt:
         reporter.close()
         click.echo(f"interrupted: finished chunks are in {out_dir}/chunks; run the same "

@@ -69,13 +69,38 @@ def connect(client=None, *, workers: int | None = None, scheduler: str | None = 
     if in_process and workers is None:
         yield None
         return
+    import dask
     from distributed import Client, LocalCluster
 
     _quiet_dask()
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                      dashboard_address=":0", silence_logs=logging.ERROR) as cluster, \
-            Client(cluster) as local:
-        yield local
+    # Forked workers start with this process's modules already imported (measured: a
+    # 5000-sample sweep command 1.41x faster on 2 workers than on 1 with spawned workers,
+    # 1.54x with forked ones); spawn where there is no fork.
+    method = "fork" if hasattr(os, "fork") else "spawn"
+    with dask.config.set({"distributed.worker.multiprocessing-method": method}):
+        with _workers_ignore_ctrl_c():  # only while the worker processes are made
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
+        with cluster, Client(cluster) as local:
+            yield local
+
+
+@contextmanager
+def _workers_ignore_ctrl_c() -> Iterator:
+    """Worker processes forked while this is entered ignore SIGINT: Ctrl-C in a terminal
+    reaches the whole process group, and only the client should act on it (cancel, stop,
+    wait, one line) instead of every worker printing a traceback."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _quiet_dask() -> None:

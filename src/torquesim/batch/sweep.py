@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelError, SimulationError, check_range
-from ..fitting.parameters import unit_aliases
 from ..model.chain import ChainModel, as_chain
 from ..model.torque_generator import TorqueGeneratorUnit
 from ..solvers.simulate import DEFAULT_TOLERANCE
@@ -47,13 +46,13 @@ class Distribution:
 
     def sample(self, uniforms: np.ndarray) -> np.ndarray:
         """Values at the quantiles ``uniforms`` (0–1)."""
-        from scipy import stats
+        from scipy.special import ndtri  # the normal quantile (scipy.stats.norm.ppf's)
 
         if self.kind == "uniform":
             return self.a + (self.b - self.a) * uniforms
         if self.kind == "normal":
-            return stats.norm.ppf(uniforms, self.a, self.b)
-        return self.a * np.exp(self.b * stats.norm.ppf(uniforms))  # lognormal
+            return ndtri(uniforms) * self.b + self.a
+        return self.a * np.exp(self.b * ndtri(uniforms))  # lognormal
 
     def grid(self) -> np.ndarray:
         return np.linspace(self.a, self.b, self.n)
@@ -98,7 +97,7 @@ def set_parameter(model: ChainModel, path: str, value: float) -> ChainModel:
     if parts[0] in ("units", "joints", "segments") and len(parts) >= 3:
         parts = parts[1:]
     unit_fields = {f.name for f in fields(TorqueGeneratorUnit)}
-    units = {u.name: u.name for u in model.units} | unit_aliases(model)
+    units = {u.name: u.name for u in model.units} | model.unit_aliases()
     head = ".".join(parts[:-1])
     name = parts[-1]
     value = float(value)
@@ -134,14 +133,14 @@ def set_parameter(model: ChainModel, path: str, value: float) -> ChainModel:
 def sample_matrix(distributions, samples: int, seed: int, sobol: bool = False) -> np.ndarray:
     """(N, P) parameter values: Monte Carlo (or Sobol') over the non-grid distributions,
     crossed with every grid; with only grids, their Cartesian product (``samples`` unused)."""
-    from scipy.stats import qmc
-
     random = [d for d in distributions if d.kind != "grid"]
     grids = [d for d in distributions if d.kind == "grid"]
     rows = 1
     draws = np.empty((1, 0))
     if random:
         if sobol:
+            from scipy.stats import qmc
+
             uniforms = qmc.Sobol(d=len(random), scramble=True, seed=seed).random(samples)
         else:
             uniforms = np.random.default_rng(seed).random((samples, len(random)))

@@ -38,21 +38,6 @@ def _field_of(name: str) -> str:
     return name.rsplit(".", 1)[1]
 
 
-def unit_aliases(model) -> dict[str, str]:
-    """Other names of each unit of a chain: ``JOINT.flexor``/``JOINT.extensor`` for the
-    joint's only unit of that direction, and on a one-joint model ``flexor``/``extensor``."""
-    aliases = {}
-    for joint in model.joints:
-        for direction, role in ((1, "flexor"), (-1, "extensor")):
-            units = [u.name for u in model.units if u.joint == joint.name
-                     and u.direction == direction]
-            if len(units) == 1:
-                aliases[f"{joint.name}.{role}"] = units[0]
-                if model.n_joints == 1:
-                    aliases[role] = units[0]
-    return aliases
-
-
 @dataclass(frozen=True)
 class ParameterSpace:
     """Bounds and frozen values of the ramp parameters of a model's units.
@@ -70,7 +55,7 @@ class ParameterSpace:
         Initial (rest) activation of every unit whose model gives one (the antagonists; the
         others start from static equilibrium). None: each unit's own. Bounds [0, 1].
     aliases : dict
-        Other names of units (see :func:`unit_aliases`).
+        Other names of units (see :meth:`~torquesim.model.chain.ChainModel.unit_aliases`).
     """
 
     units: tuple[str, ...] = ELBOW_UNITS
@@ -86,7 +71,7 @@ class ParameterSpace:
     @classmethod
     def for_model(cls, model, **kwargs) -> ParameterSpace:
         """The space of ``model``'s units (a :class:`~torquesim.model.chain.ChainModel`)."""
-        return cls(units=tuple(u.name for u in model.units), aliases=unit_aliases(model),
+        return cls(units=tuple(u.name for u in model.units), aliases=model.unit_aliases(),
                    **kwargs)
 
     def __post_init__(self) -> None:

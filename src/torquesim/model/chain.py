@@ -396,6 +396,20 @@ class ChainModel:
                              f"{', '.join(names)}")
         return names.index(name)
 
+    def unit_aliases(self) -> dict[str, str]:
+        """Other names of each unit: ``JOINT.flexor``/``JOINT.extensor`` for the joint's only
+        unit of that direction, and on a one-joint model ``flexor``/``extensor``."""
+        aliases = {}
+        for joint in self.joints:
+            for direction, role in ((1, "flexor"), (-1, "extensor")):
+                units = [u.name for u in self.units if u.joint == joint.name
+                         and u.direction == direction]
+                if len(units) == 1:
+                    aliases[f"{joint.name}.{role}"] = units[0]
+                    if self.n_joints == 1:
+                        aliases[role] = units[0]
+        return aliases
+
     def state_names(self) -> tuple[str, ...]:
         """Names of the entries of y: coordinates, their speeds, each unit's CE angle."""
         return (*(j.coordinate for j in self.joints),
