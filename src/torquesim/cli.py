@@ -611,7 +611,7 @@ def _interruptible():
 
 
 def _batch_progress(quiet: bool, label: str):
-    """A :class:`Progress` and the ``progress(done, total)`` callback of batch work: the
+    """A `Progress` and the ``progress(done, total)`` callback of batch work: the
     bar on a terminal, a line per finished task otherwise."""
     reporter = Progress(quiet)
 

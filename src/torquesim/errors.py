@@ -59,7 +59,7 @@ def check_range(
     high_open: bool = False,
     unit: str = "",
 ) -> float:
-    """Return ``float(value)`` or raise :class:`ModelError` naming ``field`` and the range.
+    """Return ``float(value)`` or raise `ModelError` naming ``field`` and the range.
 
     Any real number is accepted (NumPy scalars included); booleans are not. The interval is
     ``[low, high]``; ``low_open``/``high_open`` exclude an end.

@@ -2,7 +2,7 @@
 this process for work too small to pay a cluster's start-up.
 
 Each worker process runs one task at a time with one thread (``threads_per_worker=1``), and
-the compiled code inside a task is limited to one thread too (:func:`single_threaded`), so
+the compiled code inside a task is limited to one thread too (`single_threaded`), so
 ``n`` workers use ``n`` cores without oversubscription.
 """
 
@@ -27,7 +27,7 @@ STOP_WAIT = 60.0
 
 def check_scheduler(address: str) -> str:
     """``address`` if it is a scheduler address (``tcp://HOST:PORT``), else a one-line
-    :class:`ModelError`."""
+    `ModelError`."""
     m = _ADDRESS.match(address.strip()) if isinstance(address, str) else None
     if not m or not 0 < int(m.group(3)) < 65536:
         raise ModelError("--scheduler", f"{address!r} is not a scheduler address; allowed: "
@@ -41,7 +41,7 @@ def connect(client=None, *, workers: int | None = None, scheduler: str | None = 
             in_process: bool = False) -> Iterator:
     """A ``dask.distributed.Client``: ``client`` itself if given; else one connected to
     ``scheduler`` (``tcp://HOST:PORT``); else, with ``in_process`` (small work), None: the
-    tasks run in this process (:func:`run_tasks`), no cluster started; else a new
+    tasks run in this process (`run_tasks`), no cluster started; else a new
     ``LocalCluster`` with ``workers`` worker processes (default: one per core) of one thread
     each, closed on exit."""
     if client is not None:
@@ -130,7 +130,7 @@ def workers_of(client) -> int:
 
 def check_shared_folder(client, folder: Path) -> None:
     """Every worker of ``client`` must see ``folder`` (the same file system as this process):
-    a file written here is looked for by each; a one-line :class:`ModelError` names the
+    a file written here is looked for by each; a one-line `ModelError` names the
     workers that cannot see it. Nothing to check in process or on a local cluster."""
     if client is None:
         return
@@ -203,9 +203,9 @@ def run_tasks(client, submissions: list[tuple[Callable, tuple]], on_result: Call
     other here. A worker that dies mid-task has its task retried elsewhere (``retries``).
 
     Ctrl-C cancels what is queued, sets the Dask event ``stop_event`` (tasks that poll it,
-    :func:`stop_flag`, stop and write what they have), waits up to :data:`STOP_WAIT` s for the
+    `stop_flag`, stop and write what they have), waits up to `STOP_WAIT` s for the
     running ones, and re-raises: nothing keeps writing after the command has returned. A lost
-    scheduler or cluster is a one-line :class:`SimulationError`."""
+    scheduler or cluster is a one-line `SimulationError`."""
     if client is None:
         for i, (fn, args) in enumerate(submissions):
             on_result(i, fn(*args))

@@ -59,7 +59,7 @@ class Distribution:
 
 
 def parse_vary(text: str) -> Distribution:
-    """``PATH=KIND(a,b[,n])`` → :class:`Distribution`."""
+    """``PATH=KIND(a,b[,n])`` → `Distribution`."""
     path, eq, spec = text.partition("=")
     found = re.fullmatch(r"\s*(\w+)\s*\(([^)]*)\)\s*", spec)
     example = "flexor.se_stiffness=normal(600,60)"
@@ -174,9 +174,9 @@ ACCURACY_VERDICTS = ("ok", "unstable", "inaccurate", "failed")
 def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, method: str,
                    step: float, tolerance: float = DEFAULT_TOLERANCE) -> dict:
     """Simulate every row of ``values`` (a Dask task). Returns the outcome arrays, the angle
-    histories (samples × joints × :data:`HISTORY_POINTS`, deg, NaN for failed samples), each
-    row's accuracy verdict (:data:`ACCURACY_VERDICTS`; every run's max angle error is estimated
-    against a run at twice the step, :func:`~torquesim.solvers.simulate.simulate`'s default
+    histories (samples × joints × `HISTORY_POINTS`, deg, NaN for failed samples), each
+    row's accuracy verdict (`ACCURACY_VERDICTS`; every run's max angle error is estimated
+    against a run at twice the step, `simulate`'s default
     check, within ``tolerance`` rad) and the worker. A failing sample fills its own row with
     its one-line error."""
     from ..solvers.simulate import simulate
@@ -246,7 +246,7 @@ def fingerprint(model_toml: str, values: np.ndarray, method: str, step: float, p
 #: a local cluster (about 2 s of simulation on one core, less than a cluster's start-up).
 SMALL_WORK = 2_000_000
 #: Without an explicit chunk size, samples are split so that every worker gets at least this
-#: many tasks (the load then evens out), at most :data:`DEFAULT_CHUNK` samples each.
+#: many tasks (the load then evens out), at most `DEFAULT_CHUNK` samples each.
 TASKS_PER_WORKER = 4
 SWEEP_FINGERPRINT_FILE = "sweep_fingerprint.txt"
 
@@ -256,21 +256,21 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
           client=None, workers: int | None = None, scheduler: str | None = None,
           progress=None, tolerance: float = DEFAULT_TOLERANCE, overwrite: bool = False):
     """Simulate ``model`` (a chain, a file or ``builtin:NAME``) over the parameter
-    distributions ``vary`` (``PATH=KIND(...)`` strings or :class:`Distribution`) on Dask.
+    distributions ``vary`` (``PATH=KIND(...)`` strings or `Distribution`) on Dask.
 
     Returns (table, histories): a pandas DataFrame with one row per sample (its parameter
     values, each joint's peak angle and its time, final angle, the largest unit torque, the
-    estimated max angle error and the accuracy verdict, :data:`ACCURACY_VERDICTS`, with
+    estimated max angle error and the accuracy verdict, `ACCURACY_VERDICTS`, with
     ``tolerance`` rad, default 0.5°, and any error or warning) and the angle histories
-    (samples × joints × :data:`HISTORY_POINTS`, deg). With ``out``, finished chunks are kept in
+    (samples × joints × `HISTORY_POINTS`, deg). With ``out``, finished chunks are kept in
     ``out/chunks/`` as they arrive (a rerun with the same settings skips them) and the
     table, percentile figure and rank correlations are written there; a folder holding
     another sweep is refused unless ``overwrite``.
 
     Engine: ``client``, or a ``scheduler`` address, or a local cluster of ``workers``
-    processes; small work (:data:`SMALL_WORK`) runs in this process unless ``workers`` is
+    processes; small work (`SMALL_WORK`) runs in this process unless ``workers`` is
     given. ``chunk`` (samples per task) defaults to an even split giving every worker at least
-    :data:`TASKS_PER_WORKER` tasks.
+    `TASKS_PER_WORKER` tasks.
     """
     from ..io.model_file import load_model, model_to_toml
     from ..solvers.simulate import step_count
@@ -361,7 +361,7 @@ def _check_folder(out: Path, whole: str, overwrite: bool) -> None:
 
 
 def _auto_chunk(samples: int, workers: int) -> int:
-    """Samples per task giving every worker :data:`TASKS_PER_WORKER` tasks or more."""
+    """Samples per task giving every worker `TASKS_PER_WORKER` tasks or more."""
     return max(1, min(DEFAULT_CHUNK, math.ceil(samples / (TASKS_PER_WORKER * workers))))
 
 

@@ -1,7 +1,7 @@
 """The fit: an inverse-dynamics start, then one of two searches.
 
 ``least-squares`` (default): SciPy's trust-region reflective least squares on the residual
-vector (:mod:`torquesim.fitting.objective`) from the inverse-dynamics start and from
+vector (`torquesim.fitting.objective`) from the inverse-dynamics start and from
 ``starts − 1`` seeded perturbations of it; the Jacobian comes from central differences whose
 2·(free parameters) simulations run in parallel in compiled code. Its cost grows with the
 number of parameters only through the Jacobian, so chains fit in seconds.
@@ -146,10 +146,10 @@ CHECKPOINT_KEYS = ("version", "fingerprint", "search", "seed", "population_per_p
 
 
 def load_checkpoint(path, problem: FitProblem, settings: SearchSettings) -> dict:
-    """Read a checkpoint written by :func:`save_checkpoint` for this problem and these search
+    """Read a checkpoint written by `save_checkpoint` for this problem and these search
     settings (the seed and population size included; a larger generation or polish budget may
     differ). Never unpickles; an empty, truncated or foreign file is a one-line
-    :class:`ModelError` saying which."""
+    `ModelError` saying which."""
     name = repr(str(path))
     try:
         with open(path, "rb") as fh:
@@ -218,7 +218,7 @@ def _explain_failed_start(problem: FitProblem, x) -> None:
 
 #: A fit's own RMS error per scored joint (simulated with its technique and step) and that of
 #: the written model re-simulated with the reference solver must agree within this fraction
-#: of the fit's RMS, or within :data:`AGREEMENT_DEG`, whichever is larger.
+#: of the fit's RMS, or within `AGREEMENT_DEG`, whichever is larger.
 AGREEMENT_FRACTION = 0.10
 AGREEMENT_DEG = 0.02
 #: At most this many halvings of the fit's step to reach that agreement.
@@ -241,7 +241,7 @@ def integration_gap(problem: FitProblem, x) -> dict[str, tuple[float, float]]:
 
 
 def agrees(gap: dict[str, tuple[float, float]]) -> bool:
-    """Whether every joint's fit RMS and reference RMS agree (:data:`AGREEMENT_FRACTION`)."""
+    """Whether every joint's fit RMS and reference RMS agree (`AGREEMENT_FRACTION`)."""
     return all(abs(ref - own) <= max(AGREEMENT_FRACTION * own, AGREEMENT_DEG)
                for own, ref in gap.values())
 
@@ -252,10 +252,10 @@ def fit_to_accuracy(problem: FitProblem, settings: SearchSettings = SearchSettin
                     tick: Callable[[str, int, int], None] | None = None,
                     should_stop: Callable[[], bool] = lambda: False
                     ) -> tuple[FitProblem, FitOutcome, list[dict]]:
-    """:func:`run_fit`, then control the fit's integration error: while the reference
+    """`run_fit`, then control the fit's integration error: while the reference
     re-simulation of the fitted model and the fit's own simulation disagree on a joint's RMS
-    error (:func:`agrees`), continue the fit by least squares from the current parameters at
-    half the step (at most :data:`MAX_REFINEMENTS` times). So the headline error of the fit is
+    error (`agrees`), continue the fit by least squares from the current parameters at
+    half the step (at most `MAX_REFINEMENTS` times). So the headline error of the fit is
     that of the model it writes, simulated accurately.
 
     Returns (the problem at the final step, the outcome, the refinements: one dict per step
@@ -494,7 +494,7 @@ class _Run:
             return None
 
     def least_squares(self) -> None:
-        """Screen every start with :data:`SCREEN_EVALUATIONS` residual evaluations, then
+        """Screen every start with `SCREEN_EVALUATIONS` residual evaluations, then
         refine the best screened point for up to ``iterations`` evaluations."""
         state, problem, settings = self.state, self.problem, self.settings
         if state["stage"] != "search":

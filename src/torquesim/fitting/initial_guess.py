@@ -4,7 +4,7 @@
    Joints without a target stay at their initial angle.
 2. Net muscle torque per joint the motion needs: the body equation (docs/model.md §7) is
    affine in the joint muscle torques, q̈ = q̈₀(q, q̇) + B(q)·τ, so τ = B⁻¹(q̈ − q̈₀), with B's
-   columns from n + 1 evaluations of :func:`~torquesim.model.body.joint_accelerations`.
+   columns from n + 1 evaluations of `joint_accelerations`.
 3. Quasi-static activations: each CE moves with its joint (SE stretch changing slowly), so a
    unit of direction d carries a·T_θ(q + d·T/k)·h(d·q̇). Units with a rest level stay at it;
    the torque still needed is carried by the units of its direction that start from

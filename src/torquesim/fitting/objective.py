@@ -12,7 +12,7 @@ so that ‖r‖² = Σ_j w_j·MSE_j + w_ω²·(velocity MSE) + w_end²·(end err
 (a_u − rest_u)₊². With every weight 0 and one joint, ‖r‖ is the RMS angle error. The score is
 ‖r‖ (degrees). A run that goes non-finite, diverges or (explicit muscle solvers) exceeds the
 RK4 stability limit anywhere fails: its residuals are all FAILED_SCORE/√R, score
-:data:`FAILED_SCORE`, so it can never win.
+`FAILED_SCORE`, so it can never win.
 """
 
 from __future__ import annotations

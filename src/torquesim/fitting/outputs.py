@@ -33,7 +33,7 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
               refinements: list[dict] | None = None) -> dict:
     """Re-simulate the best candidate with the fit's technique and the reference solver and
     collect the figures of the fit: errors per joint, each unit's mean activation, and the
-    step refinements of :func:`~torquesim.fitting.fit.fit_to_accuracy` (if any)."""
+    step refinements of `fit_to_accuracy` (if any)."""
     model = problem.model_for(outcome.x)
     fitted = simulate(model, problem.method, problem.step, coupling=problem.coupling,
                       check=False)

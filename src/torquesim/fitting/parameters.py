@@ -47,7 +47,7 @@ class ParameterSpace:
     units : tuple of str
         The model's unit names, in model order; 9 parameters each. Default: the elbow's.
     lower, upper : tuple of float or None
-        Bounds in :func:`parameter_names` order; None gives the defaults: delays [0, 1] s,
+        Bounds in `parameter_names` order; None gives the defaults: delays [0, 1] s,
         durations [0.05, 0.8] s, levels [0, 1].
     frozen : dict
         Parameter name → fixed value; those are not searched.
@@ -55,7 +55,7 @@ class ParameterSpace:
         Initial (rest) activation of every unit whose model gives one (the antagonists; the
         others start from static equilibrium). None: each unit's own. Bounds [0, 1].
     aliases : dict
-        Other names of units (see :meth:`~torquesim.model.chain.ChainModel.unit_aliases`).
+        Other names of units (see `unit_aliases`).
     """
 
     units: tuple[str, ...] = ELBOW_UNITS
@@ -70,7 +70,7 @@ class ParameterSpace:
 
     @classmethod
     def for_model(cls, model, **kwargs) -> ParameterSpace:
-        """The space of ``model``'s units (a :class:`~torquesim.model.chain.ChainModel`)."""
+        """The space of ``model``'s units (a `ChainModel`)."""
         return cls(units=tuple(u.name for u in model.units), aliases=model.unit_aliases(),
                    **kwargs)
 

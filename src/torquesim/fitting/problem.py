@@ -41,9 +41,9 @@ class FitProblem:
     The model spans the target: each scored joint starts at its first target angle (the
     others at the model's initial angle), at rest in static equilibrium, and the duration is
     the target's span. Every unit's activation is 3 ramps (9 parameters,
-    :class:`ParameterSpace`) from its equilibrium or rest level. ``residuals`` and
+    `ParameterSpace`) from its equilibrium or rest level. ``residuals`` and
     ``evaluate`` simulate candidate parameter vectors (see
-    :mod:`torquesim.fitting.objective`) and count simulations.
+    `torquesim.fitting.objective`) and count simulations.
 
     Attributes
     ----------

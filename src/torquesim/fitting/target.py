@@ -131,8 +131,8 @@ def _auto_column(joint, names: list[str], one_joint: bool) -> str | None:
 def load_target(spec: str, model=None, columns=None, units: str | None = None) -> Target:
     """A target for ``model`` (a chain; default the elbow curl).
 
-    ``spec``: ``builtin:NAME`` (:data:`BUILTIN_TARGETS`) or a CSV / OpenSim ``.mot``/``.sto``
-    file (:func:`torquesim.io.target_file.read_angle_table`). Model joints are matched to
+    ``spec``: ``builtin:NAME`` (`BUILTIN_TARGETS`) or a CSV / OpenSim ``.mot``/``.sto``
+    file (`torquesim.io.target_file.read_angle_table`). Model joints are matched to
     columns by name (the joint's coordinate, e.g. ``elbow_flexion``; its name; the only column
     containing its name) or by ``columns`` {joint: column}; on a one-joint model ``columns``
     may be a column name. Joints without a column are simulated but not scored; at least one

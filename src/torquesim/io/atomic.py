@@ -20,7 +20,7 @@ def write_atomic(path, write: Callable[[Path], None], field: str = "out") -> Pat
 
     If anything fails, ``path`` is left untouched (the previous file is kept) and the temporary
     file removed; an OS error (no such directory, no permission, no space, a path under /proc)
-    becomes a :class:`~torquesim.errors.ModelError` naming the path, under ``field`` (the
+    becomes a `ModelError` naming the path, under ``field`` (the
     option or argument that gave it).
     """
     from ..errors import ModelError

@@ -31,7 +31,7 @@ A chain model (docs/model-files.md)::
     ramps = [{ delay = 0.1, duration = 0.3, level = 0.5 }, ...]
 
 Every key is checked: an unknown or missing key, a wrong type or a value out of range is a
-:class:`~torquesim.errors.ModelError` naming it. The elbow files of torquesim 0.1 (``[body]``,
+`ModelError` naming it. The elbow files of torquesim 0.1 (``[body]``,
 ``[flexor]``, ``[extensor]``) still load, as the one-segment chain they describe.
 """
 

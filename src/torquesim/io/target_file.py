@@ -168,7 +168,7 @@ def read_angle_table(
 
 def read_angle_history(path, column: str | None = None,
                        units: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
-    """One angle history from a file of :func:`read_angle_table`'s formats: ``column``, or
+    """One angle history from a file of `read_angle_table`'s formats: ``column``, or
     the only angle column, or the only one whose name contains "elbow". Returns (time,
     angle_rad, column_name)."""
     path = Path(path)

@@ -79,7 +79,7 @@ class ActivationProfile:
         return out
 
     def to_array(self, initial_level: float | None = None) -> np.ndarray:
-        """Pack as [a_0, n, t_on_1, r_1, a_1, …] for :func:`activation`.
+        """Pack as [a_0, n, t_on_1, r_1, a_1, …] for `activation`.
 
         ``initial_level`` supplies a_0 when the profile's own is ``None``.
         """

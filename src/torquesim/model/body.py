@@ -147,7 +147,7 @@ SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN = r
 
 @njit(cache=True, error_model="numpy", inline="always")
 def single_segment_acceleration(q, muscle_torque, seg, joints):
-    """q̈ of a one-segment chain, rad/s²: M is the scalar A_1, so :func:`joint_accelerations`
+    """q̈ of a one-segment chain, rad/s²: M is the scalar A_1, so `joint_accelerations`
     reduces to one division, docs/model.md's
 
         I_E·dω/dt = T_net + T_p(θ) − G·sin θ      (abstract Eq. 1 with end stops)
@@ -161,7 +161,7 @@ def single_segment_acceleration(q, muscle_torque, seg, joints):
 
 @njit(cache=True, error_model="numpy")
 def body_work_size(n):
-    """Length of the scratch array :func:`joint_accelerations` needs for n segments."""
+    """Length of the scratch array `joint_accelerations` needs for n segments."""
     return n * n + 4 * n
 
 
@@ -178,7 +178,7 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     τ_j = muscle_torque_j + T_p(q_j) (end stops); then q̈_k = φ̈_k − φ̈_{k−1}. Solved by an
     LDLᵀ factorization of M (symmetric positive definite).
 
-    ``seg``: (n, 4) segment array of :meth:`ChainModel.segment_array`; ``joints``: the flat
+    ``seg``: (n, 4) segment array of `ChainModel.segment_array`; ``joints``: the flat
     joint rows (end stops, zero offset); ``work``: flat scratch of n² + 4n, which holds q̈ at
     the end (no output array: the solvers' step loops pay for every array argument).
     """

@@ -45,7 +45,7 @@ from .body import (
 from .torque_generator import ACTIVATION_FLOOR, H_ISOMETRIC, TorqueGeneratorUnit, torque_angle
 
 MAX_SEGMENTS = 6
-#: Columns of the packed segment array (see :meth:`ChainModel.pack`).
+#: Columns of the packed segment array (see `ChainModel.pack`).
 SEG_INERTIA, SEG_MOMENT, SEG_LENGTH, SEG_GRAVITY = (SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN,
                                                     SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN)
 SEGMENT_ARRAY_SIZE = 4
@@ -221,7 +221,7 @@ class Joint:
                              "with torque_, activation_, omega_cc_ or theta_cc_")
 
     def endstop_array(self) -> np.ndarray:
-        """[k_p, s_p, q_lo, q_hi] in the layout of :func:`torquesim.model.body.passive_torque`."""
+        """[k_p, s_p, q_lo, q_hi] in the layout of `torquesim.model.body.passive_torque`."""
         p = np.zeros(ZERO_OFFSET)
         p[ENDSTOP_TORQUE] = self.endstop_torque
         p[ENDSTOP_SCALE] = self.endstop_angle_scale
@@ -246,7 +246,7 @@ class Unit:
     parameters : TorqueGeneratorUnit
     activation : ActivationProfile
         ``initial_level=None`` ("equilibrium"): the level is solved so the chain starts at
-        rest (see :meth:`ChainModel.initial_state`).
+        rest (see `ChainModel.initial_state`).
     """
 
     name: str
@@ -271,7 +271,7 @@ class Unit:
 class PackedChain(NamedTuple):
     """Plain float arrays handed to the compiled solvers.
 
-    segments : (n, 4)  A_k, B_k, L_k, g·B_k (see :meth:`ChainModel.pack`)
+    segments : (n, 4)  A_k, B_k, L_k, g·B_k (see `ChainModel.pack`)
     joints : (n, 6)    end stops, zero offset and speed limit
     units : (U, 20)    TorqueGeneratorUnit array, then joint index and direction
     activations : (U, P)  packed activation profiles [a_0, n, (t_on, r, level) × n]
@@ -467,7 +467,7 @@ class ChainModel:
 
     def joint_array(self) -> np.ndarray:
         """(n, 6): each joint's end stops, the offset added to q_k in φ_k (the base angle for
-        the first joint, 0 for the others) and its speed limit (:meth:`speed_limits`)."""
+        the first joint, 0 for the others) and its speed limit (`speed_limits`)."""
         out = np.zeros((self.n_joints, JOINT_ARRAY_SIZE))
         for k, joint in enumerate(self.joints):
             out[k, :ZERO_OFFSET] = joint.endstop_array()
@@ -477,7 +477,7 @@ class ChainModel:
 
     def speed_limits(self) -> np.ndarray:
         """The largest physically possible speed of each joint, rad/s:
-        :data:`SPEED_LIMIT_FACTOR` × the fastest ω_max of its units. A joint turning faster
+        `SPEED_LIMIT_FACTOR` × the fastest ω_max of its units. A joint turning faster
         than any of its units can shorten, ten times over, is a numerical failure, not a
         motion; the solvers stop there (and at an angle more than a full turn beyond the end
         stops)."""
@@ -531,7 +531,7 @@ class ChainModel:
           isometric (docs/model.md's elbow with a given flexor level); with several such units
           each is isometric at its own level and the joint need not start at rest.
 
-        Raises :class:`ModelError` naming the joint when no level in [0, 1] holds it.
+        Raises `ModelError` naming the joint when no level in [0, 1] holds it.
         """
         start = self.__dict__.get("_start")
         if start is None:
@@ -540,7 +540,7 @@ class ChainModel:
         return ChainStart(start.state.copy(), start.levels.copy(), start.torques.copy())
 
     def _solve_initial_state(self) -> ChainStart:
-        """:meth:`initial_state`, solved."""
+        """`initial_state`, solved."""
         n, nu = self.n_joints, self.n_units
         q0 = np.array([float(j.initial_angle) for j in self.joints])
         segments = self.segment_array()
@@ -658,7 +658,7 @@ def pack_activations(profiles, levels) -> np.ndarray:
 
 
 def as_chain(model) -> ChainModel:
-    """A :class:`ChainModel` from a chain or an :class:`~torquesim.model.elbow.ElbowModel`;
+    """A `ChainModel` from a chain or an `ElbowModel`;
     anything else is a TypeError naming the argument."""
     if isinstance(model, ChainModel):
         return model

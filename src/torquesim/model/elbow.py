@@ -85,7 +85,7 @@ class ElbowModel:
 
     def initial_state(self) -> InitialState:
         """Static equilibrium at rest at θ0 with ω_cc = 0 in both units (docs/model.md §3), as
-        solved by :meth:`ChainModel.initial_state` on :meth:`to_chain`.
+        solved by `ChainModel.initial_state` on `to_chain`.
 
         The extensor SE stretch s solves k_E·s = a_0,E·T_θ,E(θ0 − s)·h_E(0); the flexor then
         carries T_F = G·sin θ0 − T_p(θ0) + T_E, so s_F = T_F/k_F and
@@ -102,7 +102,7 @@ class ElbowModel:
     @classmethod
     def from_chain(cls, chain, purpose: str = "this command") -> ElbowModel:
         """The elbow parametrisation of a one-segment chain with one flexor and one extensor
-        unit and at most one point load; anything else is a :class:`ModelError` saying that
+        unit and at most one point load; anything else is a `ModelError` saying that
         ``purpose`` needs such a model."""
         units = chain.units
         problem = None
@@ -136,7 +136,7 @@ class ElbowModel:
                    extensor.activation, joint.initial_angle, chain.duration)
 
     def to_chain(self, check: bool = True):
-        """This elbow as a one-segment :class:`~torquesim.model.chain.ChainModel` (joint
+        """This elbow as a one-segment `ChainModel` (joint
         ``elbow``, units ``elbow_flexor`` and ``elbow_extensor``, the dumbbell a point load)."""
         from .chain import ChainModel, Joint, PointLoad, Segment, Unit
 

@@ -10,7 +10,7 @@ differential activation d of Yeadon et al. (2006) in the form of Forrester et al
 quadratic (King-type) torque/angle curve T_θ. ω_cc > 0 is concentric (shortening).
 
 The compiled functions take a unit's parameters as a plain float array laid out by the index
-constants below (see :meth:`TorqueGeneratorUnit.to_array`). Their last argument ``o`` (default
+constants below (see `TorqueGeneratorUnit.to_array`). Their last argument ``o`` (default
 0) is the offset of the unit's row when ``p`` holds several units' rows one after another: the
 solvers pass every unit of a chain in one flat array, so the step loop creates no array views.
 """
@@ -284,7 +284,7 @@ INVERSION_STEP_TOLERANCE = 1.0e-6
 def ce_velocity(target, p, guess=np.nan, damping=0.0, o=0):
     """CE angular velocity ω_cc solving h(ω_cc) − c·ω_cc = target (docs/model.md §2.5), rad/s.
 
-    See :func:`ce_velocity_and_slope`, which this returns the first part of.
+    See `ce_velocity_and_slope`, which this returns the first part of.
     """
     return ce_velocity_and_slope(target, p, guess, damping, o)[0]
 
@@ -402,8 +402,8 @@ def unit_ce_velocity(stretch, theta_cc, activation, p, guess=np.nan, o=0):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def unit_ce_velocity_and_time_constant(stretch, theta_cc, activation, p, guess, o=0):
-    """(ω_cc, τ): :func:`unit_ce_velocity` and the unit's time constant τ (s, as
-    :func:`unit_time_constant`) from the slope the root finder ends with: with
+    """(ω_cc, τ): `unit_ce_velocity` and the unit's time constant τ (s, as
+    `unit_time_constant`) from the slope the root finder ends with: with
     f' = h'(ω_cc) − β/(a·T_θ), τ = a·T_θ·|f'|/k = (a·T_θ·|h'| + β)/k. No extra evaluation."""
     capacity, target, damping = ce_equation(stretch, theta_cc, activation, p, o)
     w, slope = ce_velocity_and_slope(target, p, guess, damping, o)

@@ -1,18 +1,18 @@
 """Fixed-step solvers, compiled, for any chain: monolithic RK4 and partitioned RK4 with every
 coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX technique).
 
-The loops take the packed chain arrays (:class:`~torquesim.model.chain.PackedChain`), write
+The loops take the packed chain arrays (`PackedChain`), write
 the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices
 below). Scratch arrays are allocated once per run, the parameter arrays are read flat with row
 offsets, and the loops over units and joints sit in the step loops themselves, calling only
-loop-free inlined functions of :mod:`torquesim.solvers.rates`: a compiled helper holding a
+loop-free inlined functions of `torquesim.solvers.rates`: a compiled helper holding a
 loop over array arguments costs Numba atomic reference counting at every call, which was
 measured to cost more than the model itself.
 
 Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
 is evaluated (from the slope the CE root finder ends with, so at no extra cost) and the
 largest step/τ is recorded with its time and unit index; explicit RK4 is stable for
-step/τ ≤ :data:`RK4_STABILITY_LIMIT`.
+step/τ ≤ `RK4_STABILITY_LIMIT`.
 """
 
 from __future__ import annotations
@@ -125,7 +125,7 @@ def check_body_kind(seg, general_body):
 @njit(cache=True, error_model="numpy", inline="always")
 def _general_accelerations(y, n, torque, seg, joints, work, dy, row):
     """q̈ of a chain of two or more segments into dy[row, n:2n] (the general mass-matrix
-    solve, :func:`~torquesim.model.body.joint_accelerations`)."""
+    solve, `joint_accelerations`)."""
     joint_accelerations(y, n, torque, seg, joints, work)
     for k in range(n):
         dy[row, n + k] = work[n * n + k]
@@ -138,8 +138,8 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
     Activations are evaluated once per stage time. Each stage seeds the CE root finder with a
-    prediction from the previous step (see :func:`_predict`). ``general_body``: see
-    :func:`check_body_kind`.
+    prediction from the previous step (see `_predict`). ``general_body``: see
+    `check_body_kind`.
     """
     check_body_kind(seg, general_body)
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
@@ -289,7 +289,7 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
     """``substeps`` steps of the muscle part θ_cc = y[2n:] over [t, t + h] by the L-stable
     two-stage SDIRK method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h; stiffly
     accurate), each unit's stage equation solved by
-    :func:`~torquesim.solvers.sdirk.unit_implicit_ce_velocity`. Joint angles
+    `unit_implicit_ce_velocity`. Joint angles
     q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]). With this the muscle part has no step-size
     stability limit. Result into y_new[2n:].
 
@@ -385,7 +385,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     Within a step each exchanged signal is affine in time: its step-start value plus a slope
     that is zero (hold), the previous step's change (linear extrapolation) or, once the other
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
-    ``general_body``: see :func:`check_body_kind`.
+    ``general_body``: see `check_body_kind`.
     """
     check_body_kind(seg, general_body)
     order = int(coupling[ORDER])

@@ -14,7 +14,7 @@ The per-unit functions are loop-free and inlined into the solvers' step loops, w
 units and joints themselves: Numba cannot prune the reference counting of array arguments
 around a compiled function that contains loops, which cost more than the whole model when the
 loops sat in helpers (measured: 2.6x slower elbow steps). The arrays are flat, as the solvers
-pass them: ``units`` holds the units' rows of :data:`~torquesim.model.chain.UNIT_ROW_SIZE` one
+pass them: ``units`` holds the units' rows of `UNIT_ROW_SIZE` one
 after another, ``profiles`` the activation rows of ``width``.
 """
 
@@ -70,7 +70,7 @@ def unit_activation(t, profiles, width, u):
 @njit(cache=True, error_model="numpy")
 def flat_arrays(seg, joints, units, profiles):
     """(n joints, n units, profile row width, flat units, flat joints, flat profiles) of the
-    2-D packed arrays of :class:`~torquesim.model.chain.PackedChain`, as the loops read them."""
+    2-D packed arrays of `PackedChain`, as the loops read them."""
     return (seg.shape[0], units.shape[0], profiles.shape[1], units.ravel(), joints.ravel(),
             profiles.ravel())
 
@@ -78,7 +78,7 @@ def flat_arrays(seg, joints, units, profiles):
 @njit(cache=True, error_model="numpy")
 def joint_muscle_torques(q, x, x_off, units, n_units, out, n_joints):
     """τ_j = Σ_{units on j} d·k·max(s, 0), N·m, into out[:n_joints]; θ_cc,u = x[x_off + u].
-    (Outside the step loops; the loops sum :func:`unit_joint_torque` themselves.)"""
+    (Outside the step loops; the loops sum `unit_joint_torque` themselves.)"""
     for j in range(n_joints):
         out[j] = 0.0
     for u in range(n_units):
@@ -89,7 +89,7 @@ def joint_muscle_torques(q, x, x_off, units, n_units, out, n_joints):
 @njit(cache=True, error_model="numpy")
 def chain_derivative(t, y, seg, joints, units, profiles):
     """dy/dt at time t (s) as a new array, for SciPy's solvers; takes the 2-D packed arrays of
-    :class:`~torquesim.model.chain.PackedChain`."""
+    `PackedChain`."""
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     dy = np.empty(y.shape[0])
     torque = np.empty(n)

@@ -31,7 +31,7 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
     """Per row of ``states`` = (q, q̇, θ_cc): fill ``unit_out`` (rows × U × 4) with each unit's
     torque T (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s) and time constant τ (s);
     and ``joint_out`` (rows × n × 2) with each joint's net muscle torque Σ d·T and end-stop
-    torque T_p (N·m). Takes the 2-D arrays of :class:`~torquesim.model.chain.PackedChain`."""
+    torque T_p (N·m). Takes the 2-D arrays of `PackedChain`."""
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     torque = np.empty(n)
     for i in range(time.shape[0]):
@@ -80,7 +80,7 @@ class StabilityReport:
     ``max_step_ratio`` is the largest step/τ seen (τ: a unit's CE time constant), at time
     ``time`` in unit ``unit``. ``exceeded`` is True when it passed the RK4 limit 2.785: the
     motion is then probably wrong although bounded. ``largest_safe_step`` (s) is the step
-    found by running (``verified_step``, see :func:`torquesim.solvers.simulate.verified_step`)
+    found by running (``verified_step``, see `torquesim.solvers.simulate.verified_step`)
     when the run failed or broke the limit; otherwise the estimate 2.785·min τ of this run."""
 
     max_step_ratio: float
@@ -198,7 +198,7 @@ class SimulationResult:
         ``theta_cc_<unit>``; per unit ``torque_<unit>``; per joint ``torque_net_<joint>``
         (muscles, flexion positive) and ``torque_passive_<joint>`` (end stops); per unit
         ``activation_<unit>`` (floored at 0.01) and ``omega_cc_<unit>`` (concentric
-        positive). See :func:`column_units`."""
+        positive). See `column_units`."""
         unit_out, joint_out = self._derived()
         m = self.model
         cols = {"time": self.time}
@@ -236,7 +236,7 @@ class SimulationResult:
 
 
 def column_units(name: str) -> str:
-    """SI unit of an output column of :meth:`SimulationResult.columns`."""
+    """SI unit of an output column of `SimulationResult.columns`."""
     if name == "time":
         return "s"
     if name.startswith(("torque_",)):

@@ -2,7 +2,7 @@
 
 A diagonally implicit Runge-Kutta stage asks for the CE velocity w at the stage state it
 produces itself: θ_cc = θ_cc,known + d·γh·w, s = s_known + γh·w. This module solves that
-scalar equation; the CE equation itself lives in :mod:`torquesim.model.torque_generator`.
+scalar equation; the CE equation itself lives in `torquesim.model.torque_generator`.
 """
 
 from __future__ import annotations

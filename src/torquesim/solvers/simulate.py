@@ -25,7 +25,7 @@ DEFAULT_STEP = 1.0e-4
 REFERENCE_RTOL = 1.0e-10
 REFERENCE_ATOL = 1.0e-12
 DEFAULT_OUTPUT_STEP = 1.0e-3
-#: Default accuracy check of fixed-step runs in :func:`simulate`: warn when the estimated max
+#: Default accuracy check of fixed-step runs in `simulate`: warn when the estimated max
 #: angle error exceeds this (rad; 0.5°).
 DEFAULT_TOLERANCE = math.radians(0.5)
 
@@ -63,7 +63,7 @@ def simulate(
     Parameters
     ----------
     model : ChainModel or ElbowModel, optional
-        Any planar chain (:func:`torquesim.load_model` of a file or ``"builtin:NAME"``); an
+        Any planar chain (`torquesim.load_model` of a file or ``"builtin:NAME"``); an
         ElbowModel is simulated as its one-segment chain.
     method : {"monolithic", "partitioned", "reference"} or "scipy:NAME"
         ``monolithic``: classical RK4 on the whole state. ``partitioned``: each part with its
@@ -79,18 +79,18 @@ def simulate(
     initial_state : array, optional
         y(0) = (q, q̇, θ_cc of every unit) replacing the static-equilibrium start.
     check : bool
-        Raise :class:`SimulationError` if the state goes non-finite or leaves the physically
+        Raise `SimulationError` if the state goes non-finite or leaves the physically
         possible range (default); otherwise return the failed result with
         ``status == "failed"``.
     advise : bool
         Fixed-step runs that fail or break the stability limit: find the step to recommend by
-        running it (:func:`verified_step`), so the advice holds when followed. Default True;
+        running it (`verified_step`), so the advice holds when followed. Default True;
         studies that try many steps on purpose turn it off.
     tolerance : float or None
         Fixed-step runs: estimate the max angle error by Richardson extrapolation against a
         run at twice the step (half a run's work) and, when that exceeds the tolerance,
         against a run at half the step (error ≈ max|q_h − q_h/2|·2^p/(2^p − 1), p the
-        technique's order, :func:`nominal_order`), and warn (``result.message``) when it
+        technique's order, `nominal_order`), and warn (``result.message``) when it
         exceeds ``tolerance`` (rad). Default 0.5°; None turns the check off. The estimate is
         in ``result.settings["estimated_error_rad"]``.
     """
@@ -255,8 +255,8 @@ def verified_step(model, packed, y0, method, step, coupling) -> float | None:
     """The step to recommend after a fixed-step run at ``step`` failed or broke the stability
     limit, found by running: the largest of step/2, step/4, … (made to divide the duration)
     whose run succeeds within the stability limit and agrees with a run at half that step to
-    :data:`ADVICE_AGREEMENT` rad. None if no step down to step/2^8 (and no run of at most
-    :data:`ADVICE_MAX_STEPS` steps) does."""
+    `ADVICE_AGREEMENT` rad. None if no step down to step/2^8 (and no run of at most
+    `ADVICE_MAX_STEPS` steps) does."""
     h = step
     for _ in range(ADVICE_HALVINGS):
         h = divisor_step(model.duration, h / 2)
@@ -315,7 +315,7 @@ def _with_error_estimate(result, model, packed, y0, method, coupling, tolerance)
     First against a run at twice the step (half a run's work); when that estimate exceeds the
     tolerance or cannot be made, against a run at half the step (two runs' work):
     max|q_h − q_h/2|·2^p/(2^p − 1), which decides. p is the technique's order
-    (:func:`nominal_order`). A run within the tolerance thus costs 1.5 runs, a flagged one
+    (`nominal_order`). A run within the tolerance thus costs 1.5 runs, a flagged one
     3.5."""
     p = nominal_order(method, coupling)
     estimate = _doubling_estimate(result, model, packed, y0, method, coupling, p)

@@ -24,7 +24,7 @@ def smooth_case() -> tuple[ElbowModel, np.ndarray]:
     Returns
     -------
     model, initial_state
-        Pass ``initial_state`` to :func:`torquesim.simulate`.
+        Pass ``initial_state`` to `torquesim.simulate`.
     """
     model = default_model().replace(flexor_activation=ActivationProfile(0.6),
                                     extensor_activation=ActivationProfile(0.3), duration=0.4)
@@ -47,7 +47,7 @@ def smooth_chain_case() -> tuple[ChainModel, np.ndarray]:
     Returns
     -------
     model, initial_state
-        Pass ``initial_state`` to :func:`torquesim.simulate`.
+        Pass ``initial_state`` to `torquesim.simulate`.
     """
     from ..model.presets import preset
 

@@ -1,10 +1,10 @@
-"""How well :func:`torquesim.simulate`'s default checks catch wrong runs.
+"""How well `torquesim.simulate`'s default checks catch wrong runs.
 
 Every fixed-step technique — monolithic RK4, IMEX, and every coupling variant of the
 partitioned technique (order × predictor × iterations × muscle solver) — at a range of steps,
-simulated with :func:`~torquesim.solvers.simulate.simulate`'s default arguments and compared
-with a Radau reference. A run more than :data:`WRONG_RAD` off must carry a warning (or be
-refused); a warning on a run within :data:`RIGHT_RAD` is a false alarm.
+simulated with `simulate`'s default arguments and compared
+with a Radau reference. A run more than `WRONG_RAD` off must carry a warning (or be
+refused); a warning on a run within `RIGHT_RAD` is a false alarm.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Each technique runs over a range of fixed steps (or tolerances, for adaptive solvers) and is
 compared with a high-accuracy reference (Radau, rtol 1e-11). The table has one row per
-(technique, step or tolerance); :func:`verdict` turns it into the answer.
+(technique, step or tolerance); `verdict` turns it into the answer.
 """
 
 from __future__ import annotations
@@ -137,13 +137,13 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
               progress: Callable[[int, int, str], None] | None = None,
               timer: Callable[[object], float] = _wall_time) -> tuple[list[dict], object]:
     """Run every technique at every step/tolerance on ``model`` (any chain); return (rows,
-    reference). Rows have :data:`COLUMNS` and the per-joint :func:`joint_error_columns`.
+    reference). Rows have `COLUMNS` and the per-joint `joint_error_columns`.
 
     Every run is made ``repeats`` times, round-robin over all runs (the first round gives the
     errors and the work counts, which do not change between repeats); its wall time is the
     minimum over the repeats, with the median, the maximum and every reading. ``timer(result)``
     reads a run's wall time (default: the kernel's own reading; tests inject noise here).
-    ``modelled_cost_s`` is filled by :func:`calibrate`. ``progress(done, total, label)`` is
+    ``modelled_cost_s`` is filled by `calibrate`. ``progress(done, total, label)`` is
     called after each run."""
     model = as_chain(model)
     columns = COLUMNS + joint_error_columns(model)
@@ -237,10 +237,10 @@ def calibrate(rows: list[dict]) -> dict[str, float]:
 
     Fixed-step runs: wall ≈ c_step,kernel·steps + c_body·(body evaluations) +
     c_muscle·(muscle evaluations) + c_newton·(Newton iterations), the per-step overhead
-    separate for the monolithic and the partitioned loop (:data:`FIXED_STEP_WORK`); SciPy runs:
+    separate for the monolithic and the partitioned loop (`FIXED_STEP_WORK`); SciPy runs:
     wall ≈ c_step·steps + c_call·calls + c_lu·(LU factorisations). Non-negative least squares
     on the relative errors (every run weighs alike), over the rows marked ``calibration_run``
-    (:data:`CALIBRATION_REPEATS` readings each) where there are any. Returns the coefficients
+    (`CALIBRATION_REPEATS` readings each) where there are any. Returns the coefficients
     by name (``fixed.body`` …)."""
     from scipy.optimize import nnls
 
@@ -369,7 +369,7 @@ VERDICT_COLUMNS = ("target_deg", "cheapest", "cheapest_setting", "modelled_cost_
 
 
 def verdict_table(verdicts: list[dict]) -> list[dict]:
-    """The verdict as rows of :data:`VERDICT_COLUMNS` (``verdict.csv``): per accuracy target
+    """The verdict as rows of `VERDICT_COLUMNS` (``verdict.csv``): per accuracy target
     the cheapest technique and its setting, its modelled cost, the runner-up and the cost
     ratio, and the measured wall-time ratio with its range over the interleaved repeats."""
     out = []

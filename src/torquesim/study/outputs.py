@@ -36,8 +36,8 @@ SMOOTH_STEPS = (2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4)
 
 
 def smooth_case_orders(progress=None, chain: bool = False) -> dict[str, float]:
-    """Observed orders of the fixed-step techniques on :func:`smooth_case` (the elbow) or,
-    with ``chain``, :func:`smooth_chain_case` (shoulder and elbow)."""
+    """Observed orders of the fixed-step techniques on `smooth_case` (the elbow) or,
+    with ``chain``, `smooth_chain_case` (shoulder and elbow)."""
     from ..solvers import Coupling
     from ..solvers.coupling import IMEX
 
@@ -65,7 +65,7 @@ def _csv_value(value) -> str:
 
 def rows_to_csv(rows, columns=None) -> str:
     """Rows as CSV (floats in full precision, tuples joined by ``;``). Default columns: the
-    first row's keys (the study table: :data:`COLUMNS` then the per-joint error columns)."""
+    first row's keys (the study table: `COLUMNS` then the per-joint error columns)."""
     columns = list(columns or (rows[0] if rows else COLUMNS))
     buf = io.StringIO()
     writer = csv.writer(buf)
@@ -94,7 +94,7 @@ def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=No
     """Run the study on ``model`` and write results.csv, verdict.csv, convergence.png,
     work_precision.png, time_constants.png, report.html and manifest.json into ``directory``.
     ``smooth`` (orders on the smooth case) is measured unless given. ``timer``: see
-    :func:`~torquesim.study.compare.run_study`."""
+    `run_study`."""
     from .. import __version__
     from ..io.model_file import model_to_toml
     from ..model.chain import as_chain

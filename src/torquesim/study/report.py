@@ -113,7 +113,7 @@ def order_label(rows, name) -> str:
 
 def plot_convergence(rows):
     """Max angle error (degrees) against step (log-log), one line per fixed-step technique,
-    labelled with its fitted slope where :func:`observed_order` finds a power law and with its
+    labelled with its fitted slope where `observed_order` finds a power law and with its
     stability limit (censored where the steps tried do not bound it)."""
     fixed = [r for r in rows if r["h_s"]]
     return _loglog_by_technique(

@@ -42,7 +42,7 @@ SUMMARY_COLUMNS = ("variable", "value", "technique", "stability_limit_s", "min_t
 
 
 def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
-    """``NAME=v1,v2,...`` → (name, values), checked against :data:`VARIABLES`."""
+    """``NAME=v1,v2,...`` → (name, values), checked against `VARIABLES`."""
     name, _, rest = text.partition("=")
     name = name.strip()
     if name not in VARIABLES:
@@ -61,7 +61,7 @@ def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
 
 def vary_model(model, name: str, value: float) -> ChainModel:
     """``model`` (any chain) with parameter ``name`` set to ``value`` (see
-    :data:`VARIABLES`)."""
+    `VARIABLES`)."""
     model = as_chain(model)
     try:
         if name in ("se_stiffness", "ce_damping"):
