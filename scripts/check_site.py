@@ -50,8 +50,9 @@ function torquesimCheck() {
     const copy = article.cloneNode(true);
     copy.querySelectorAll('code, pre, .katex, script, style').forEach((e) => e.remove());
     const text = copy.textContent;
-    for (const [what, re] of [['raw math', /\$\$|\\\(|\\\[/], ['click sentinel', /Sentinel\./],
-                              ['raw Sphinx role', /:(func|class|meth|mod|attr|data|obj|exc|ref):/]]) {
+    const checks = [['raw math', /\$\$|\\\(|\\\[/], ['click sentinel', /Sentinel\./],
+                    ['raw Sphinx role', /:(func|class|meth|mod|attr|data|obj|exc|ref):/]];
+    for (const [what, re] of checks) {
       const m = text.match(re);
       if (m) bad.push(what + ' near "' + text.slice(Math.max(0, m.index - 30), m.index + 30)
                       .replace(/\s+/g, ' ') + '"');
