@@ -1,0 +1,47 @@
+"""The documentation as a reader meets it: the site checker finds what the strict build cannot
+see, and the study page's generated blocks are in place."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+needs_chromium = pytest.mark.skipif(
+    not any(shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")),
+    reason="no Chromium on this machine (scripts/check_site.py needs one)")
+
+
+@needs_chromium
+def test_the_site_checker_finds_raw_math_sentinels_roles_and_overflowing_cells(tmp_path):
+    good = tmp_path / "site" / "good"
+    bad = tmp_path / "site" / "bad"
+    good.mkdir(parents=True)
+    bad.mkdir(parents=True)
+    (good / "index.html").write_text(
+        "<html><body><article><p>T = k·s</p><code>$$x$$ :func: Sentinel.UNSET</code>"
+        "</article></body></html>")
+    (bad / "index.html").write_text(
+        "<html><body><article><p>$$T = k s$$ see :func:`simulate` default Sentinel.UNSET</p>"
+        "<table style='width:100px;table-layout:fixed'><tr><th style='width:50px;"
+        "white-space:nowrap;overflow:hidden'>a_header_far_too_long_for_its_cell</th></tr>"
+        "</table></article></body></html>")
+    run = subprocess.run([sys.executable, str(ROOT / "scripts" / "check_site.py"),
+                          str(tmp_path / "site")], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 1, run.stdout + run.stderr
+    lines = run.stdout.splitlines()
+    assert all(line.endswith(": OK") for line in lines if line.startswith("good"))
+    bad_lines = [line for line in lines if line.startswith("bad")]
+    assert len(bad_lines) == 2
+    for line in bad_lines:
+        assert "raw math" in line and "click sentinel" in line and "raw Sphinx role" in line
+        assert "overflows its cell" in line
+
+
+def test_the_study_page_holds_its_generated_blocks():
+    run = subprocess.run([sys.executable, str(ROOT / "scripts" / "make_docs.py"), "--check"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
