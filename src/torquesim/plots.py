@@ -8,8 +8,10 @@ import numpy as np
 
 
 def plot_result(result, *, target=None):
-    """Per joint (one row each): the joint angle (deg), the torques of its units and its net
-    muscle torque (N·m), and its units' activations.
+    """Per joint (one row each): the joint angle (deg), each unit's torque at the joint with
+    its sign (d·T: flexors +, extensors −) and the net muscle torque (N·m, flexion +), and its
+    units' activations. With a ``target``, a fourth panel per scored joint shows the residual
+    (simulated − target, deg) with its RMS and maximum.
 
     ``target`` is an optional (time, angle rad) pair drawn over the first joint's angle, or a
     dict joint name → (time, angle rad).
@@ -18,28 +20,42 @@ def plot_result(result, *, target=None):
     model = result.model
     t = cols["time"]
     n = model.n_joints
-    fig, axes = _figure_grid(n, 3, (13.0, 2.9 * n + 0.8))
     targets = target if isinstance(target, dict) else (
         {model.joints[0].name: target} if target is not None else {})
+    ncols = 4 if targets else 3
+    fig, axes = _figure_grid(n, ncols, (4.4 * ncols, 2.9 * n + 0.8))
     for row, joint in enumerate(model.joints):
-        ax_angle, ax_torque, ax_act = axes[row]
-        ax_angle.plot(t, np.degrees(cols[joint.coordinate]), color="k",
-                      label=f"simulated ({result.method})")
+        ax_angle, ax_torque, ax_act = axes[row][:3]
+        angle = np.degrees(cols[joint.coordinate])
+        ax_angle.plot(t, angle, color="k", label=f"simulated ({result.method})")
         if joint.name in targets:
-            tt, angle = targets[joint.name]
-            ax_angle.plot(tt, np.degrees(angle), "--", color="tab:red", label="target")
+            tt, goal = targets[joint.name]
+            ax_angle.plot(tt, np.degrees(goal), ls=(0, (4, 3)), color="tab:red", lw=1.6,
+                          label="target", zorder=3)
+            residual = np.interp(tt, t, angle) - np.degrees(goal)
+            ax_res = axes[row][3]
+            rms, worst = float(np.sqrt(np.mean(residual**2))), float(np.max(np.abs(residual)))
+            ax_res.plot(tt, residual, color="tab:red")
+            ax_res.axhline(0.0, color="grey", lw=0.8)
+            ax_res.set_ylabel(f"{joint.name} residual (deg)")
+            ax_res.set_title(f"RMS {rms:.3f}°, max {worst:.3f}°", fontsize="medium")
+        elif targets:
+            axes[row][3].set_axis_off()
         ax_angle.set_ylabel(f"{joint.coordinate} (deg)")
         ax_angle.legend(loc="best", fontsize="small")
         units = [u for u in model.units if u.joint == joint.name]
         for u in units:
-            ax_torque.plot(t, cols[f"torque_{u.name}"], label=u.name)
+            sign = "+" if u.direction == 1 else "−"
+            ax_torque.plot(t, u.direction * cols[f"torque_{u.name}"],
+                           label=f"{u.name} ({sign})")
             ax_act.plot(t, cols[f"activation_{u.name}"], label=u.name)
         ax_torque.plot(t, cols[f"torque_net_{joint.name}"], color="k", lw=1,
-                       label="net (flexion +)")
-        ax_torque.set_ylabel(f"{joint.name} torque (N·m)")
+                       label="net")
+        ax_torque.axhline(0.0, color="grey", lw=0.6)
+        ax_torque.set_ylabel(f"{joint.name} torque, flexion + (N·m)")
         ax_torque.legend(loc="best", fontsize="small")
         ax_act.set_ylim(0.0, 1.05)
-        ax_act.set_ylabel("activation")
+        ax_act.set_ylabel("activation (0–1)")
         ax_act.legend(loc="best", fontsize="small")
         for ax in axes[row]:
             ax.grid(alpha=0.3)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -34,30 +35,44 @@ def rank_correlations(frame, parameters, outcomes) -> dict[str, dict[str, float]
     return out
 
 
-def plot_bands(chain, histories: np.ndarray):
-    """Per joint: the median angle and the 25–75 % and 5–95 % bands over the samples."""
+def plot_sweep(chain, histories: np.ndarray, frame, parameters: list[str], rho: dict):
+    """Per joint (a row each): the median angle and the 25–75 % and 5–95 % bands over the
+    accurate samples, then each joint's peak angle against each varied parameter (one panel
+    per parameter, accurate samples) with its Spearman ρ. The title says what was varied."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    n = chain.n_joints
+    n, p = chain.n_joints, len(parameters)
     t = np.linspace(0.0, chain.duration, histories.shape[2])
-    fig, axes = plt.subplots(n, 1, figsize=(8, 2.8 * n + 0.6), squeeze=False, sharex=True,
-                             constrained_layout=True)
-    finished = histories[~np.isnan(histories[:, 0, 0])]
+    ok = (frame["accuracy"] == "ok").to_numpy()
+    fig, axes = plt.subplots(n, 1 + p, figsize=(5.2 + 3.6 * p, 2.9 * n + 1.0), squeeze=False,
+                             layout="constrained")
+    accurate = histories[ok]
     for j, joint in enumerate(chain.joints):
         ax = axes[j, 0]
-        if finished.shape[0]:
-            p5, p25, p50, p75, p95 = np.percentile(finished[:, j], PERCENTILES, axis=0)
+        if accurate.shape[0]:
+            p5, p25, p50, p75, p95 = np.percentile(accurate[:, j], PERCENTILES, axis=0)
             ax.fill_between(t, p5, p95, color="tab:blue", alpha=0.2, label="5–95 %")
             ax.fill_between(t, p25, p75, color="tab:blue", alpha=0.4, label="25–75 %")
             ax.plot(t, p50, color="tab:blue", label="median")
         ax.set_ylabel(f"{joint.coordinate} (deg)")
+        ax.set_xlabel("time (s)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize="small")
-    axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle(f"{chain.name}: {finished.shape[0]} of {histories.shape[0]} samples")
+        ax.legend(fontsize="small", loc="best")
+        peak = f"peak_{joint.name}_deg"
+        for k, name in enumerate(parameters):
+            ax = axes[j, 1 + k]
+            ax.plot(frame.loc[ok, name], frame.loc[ok, peak], ".", ms=3, alpha=0.6)
+            ax.set_xlabel(name)
+            ax.set_ylabel(f"peak {joint.name} (deg)")
+            value = rho.get(name, {}).get(peak, float("nan"))
+            ax.set_title(f"Spearman ρ = {value:.2f}", fontsize="medium")
+            ax.grid(alpha=0.3)
+    varied = ", ".join(parameters)
+    fig.suptitle(textwrap.fill(f"{chain.name}: {int(ok.sum())} of {len(frame)} samples "
+                               f"accurate; varied: {varied}", 90))
     return fig
 
 
@@ -77,13 +92,13 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> 
                               strict=True):
                 bands[f"{joint.name}_p{p}_deg"] = row
     write_table(out / "sweep_percentiles.csv", bands)
-    figure = plot_bands(chain, histories)
-    png_path = out / "sweep.png"
-    save_figure(figure, png_path, "--out")
     parameters = [d.path for d in distributions]
     outcomes = [c for c in outcome_columns(chain)
                 if c not in ("estimated_error_deg", "accuracy", "error")]
     rho = rank_correlations(frame, parameters, outcomes)
+    figure = plot_sweep(chain, histories, frame, parameters, rho)
+    png_path = out / "sweep.png"
+    save_figure(figure, png_path, "--out")
     rows = [[p, *(rho[p][o] for o in outcomes)] for p in parameters]
     write_text_atomic(out / "rank_correlations.csv",
                       ",".join(["parameter", *outcomes]) + "\n"
@@ -95,7 +110,8 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> 
             f"{counts.get('unstable', 0)} beyond the RK4 stability limit, "
             f"{counts.get('failed', 0)} failed (their errors and warnings are in sweep.csv). "
             "Rank correlations use the accurate samples only.</p>",
-            image(png_path.read_bytes(), "percentile bands"),
+            image(png_path.read_bytes(), "percentile bands and peak angle against each "
+                  "parameter"),
             "<h2>Spearman rank correlation of each parameter with each outcome</h2>",
             table(["parameter", *outcomes], rows),
             "<h2>Distributions</h2>",
