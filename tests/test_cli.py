@@ -180,3 +180,16 @@ def test_every_option_has_help_and_a_real_default():
 
     walk(cli, "torquesim")
     assert main(["batch", "sweep", "-h"]) == 0
+
+
+def test_model_plot_draws_the_chain_and_the_unit_curves(tmp_path, capsys):
+    png = tmp_path / "arm.png"
+    assert main(["model", "arm-raise", "--plot", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    import matplotlib.image
+
+    height, width = matplotlib.image.imread(png).shape[:2]
+    assert width > 1000 and height > 500
+    capsys.readouterr()
+    assert main(["model", "arm-raise"]) == 2  # nothing to write
+    assert "--out" in capsys.readouterr().err

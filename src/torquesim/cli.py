@@ -190,18 +190,33 @@ def _announce_size(model, method, step, duration, out_path) -> None:
 
 @cli.command(short_help="Write a model as an editable TOML file.")
 @click.argument("name", default="elbow-curl")
-@click.option("--out", "out_path", type=click.Path(dir_okay=False), required=True,
+@click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Where to write the model TOML.")
-def model(name, out_path):
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Draw the model (segments, joints, loads, which units act where) and each "
+                   "unit's property curves (.png, .pdf, .svg).")
+def model(name, out_path, plot_path):
     """Write a model as an editable TOML file: a preset (elbow-curl, knee-extension,
-    arm-raise; builtin: prefix optional) or a checked, rewritten copy of a model file."""
+    arm-raise; builtin: prefix optional) or a checked, rewritten copy of a model file; or
+    draw it with --plot."""
     from .io.model_file import load_model, save_model
     from .model.presets import PREFIX, PRESETS
 
+    if out_path is None and plot_path is None:
+        raise ModelError("--out", "nothing to write; allowed: --out FILE.toml and/or --plot "
+                         "FILE.png")
     _check_output(out_path, (".toml",), "--out")
+    _check_output(plot_path, PLOT_SUFFIXES, "--plot")
     source = PREFIX + name if name in PRESETS else name
-    save_model(load_model(source), out_path)
-    click.echo(f"wrote {out_path}")
+    chain = load_model(source)
+    if out_path:
+        save_model(chain, out_path, "--out")
+        click.echo(f"wrote {out_path}")
+    if plot_path:
+        from .plots import plot_model, save_figure
+
+        save_figure(plot_model(chain), plot_path, "--plot")
+        click.echo(f"wrote {plot_path}")
 
 
 class Progress:

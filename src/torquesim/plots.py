@@ -68,6 +68,97 @@ def plot_result(result, *, target=None):
     return fig
 
 
+def plot_model(model):
+    """The model as a picture: left, the chain at its initial angles (segments from the base,
+    joints as circles with their name and initial angle in degrees, centres of mass and point
+    loads with their mass, gravity and the flexion direction), and which units act where;
+    right, each unit's property curves: tetanic torque T_ω(ω_cc) and CE torque
+    d(ω_cc)·T_ω(ω_cc) (N·m, concentric positive), torque/angle factor T_θ(θ_cc), and the SE
+    torque against stretch (N·m/rad slope k)."""
+    from .model.torque_generator import (
+        differential_activation,
+        tetanic_torque_velocity,
+        torque_angle,
+        unit_torque,
+    )
+
+    fig = _figure(figsize=(13.0, 6.2))
+    grid = fig.add_gridspec(2, 3, width_ratios=(1.3, 1, 1))
+    ax = fig.add_subplot(grid[:, 0])
+    phi = model.absolute_angles(np.array([j.initial_angle for j in model.joints]))
+    x, y = [0.0], [0.0]
+    for k, seg in enumerate(model.segments):
+        direction = np.array([np.sin(phi[k]), -np.cos(phi[k])])
+        length = seg.length if seg.length > 0 else max(
+            [seg.com_distance * 2, *(ld.distance for ld in seg.loads)])
+        start = np.array([x[-1], y[-1]])
+        end = start + length * direction
+        ax.plot([start[0], end[0]], [start[1], end[1]], color="k", lw=3, solid_capstyle="round")
+        com = start + seg.com_distance * direction
+        ax.plot(*com, marker="o", ms=7, mfc="white", mec="k")
+        ax.annotate(f"{seg.name}\n{seg.mass:g} kg", com, xytext=(8, 0),
+                    textcoords="offset points", fontsize="small", va="center")
+        for ld in seg.loads:
+            where = start + ld.distance * direction
+            ax.plot(*where, marker="s", ms=10, color="tab:grey")
+            ax.annotate(f"{ld.name} {ld.mass:g} kg", where, xytext=(8, -12),
+                        textcoords="offset points", fontsize="small", color="tab:grey")
+        joint = model.joints[k]
+        units = [u for u in model.units if u.joint == joint.name]
+        ax.plot(*start, marker="o", ms=12, color="tab:blue", zorder=4)
+        label = (f"{joint.name} {np.degrees(joint.initial_angle):.0f}°\n"
+                 + "\n".join(f"{'+' if u.direction == 1 else '−'} {u.name}" for u in units))
+        ax.annotate(label, start, xytext=(-16, 0), textcoords="offset points", ha="right",
+                    va="center", fontsize="small", color="tab:blue")
+        x.append(end[0])
+        y.append(end[1])
+    ax.annotate("", xy=(0.93, 0.78), xytext=(0.93, 0.95), xycoords="axes fraction",
+                arrowprops={"arrowstyle": "->", "color": "grey"})
+    ax.text(0.91, 0.86, f"g = {model.gravity:g} m/s²", transform=ax.transAxes, ha="right",
+            color="grey", fontsize="small")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.6, 0.15)
+    ax.set_title(textwrap.fill(f"{model.name} at its initial angles; + flexor, − extensor; "
+                               "flexion positive", 48), fontsize="medium")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    axes = [fig.add_subplot(grid[r, c]) for r in range(2) for c in (1, 2)]
+    a_v, a_d, a_t, a_s = axes
+    for unit in model.units:
+        p = unit.parameters.to_array()
+        w = np.linspace(-unit.parameters.max_velocity, unit.parameters.max_velocity, 401)
+        tet = np.array([tetanic_torque_velocity(v, p) for v in w])
+        dif = np.array([differential_activation(v, p) for v in w])
+        a_v.plot(w, tet, label=unit.name)
+        a_d.plot(w, dif * tet, label=unit.name)
+        theta = np.linspace(0.0, np.pi, 181)
+        a_t.plot(np.degrees(theta), [torque_angle(th, p) for th in theta], label=unit.name)
+        stretch = np.linspace(-0.02, 0.2, 111)
+        a_s.plot(stretch, [unit_torque(s_, p) for s_ in stretch], label=unit.name)
+    a_v.set(xlabel="CE velocity ω_cc (rad/s, concentric +)", ylabel="T_ω (N·m)",
+            title="tetanic torque/velocity")
+    a_d.set(xlabel="CE velocity ω_cc (rad/s, concentric +)", ylabel="d·T_ω (N·m)",
+            title="with differential activation")
+    a_t.set(xlabel="CE angle θ_cc (deg)", ylabel="T_θ (0–1)", title="torque/angle factor")
+    a_s.set(xlabel="SE stretch (rad)", ylabel="unit torque (N·m)", title="series elastic element")
+    for a in axes:
+        a.grid(alpha=0.3)
+        a.title.set_fontsize("medium")
+    handles, labels = a_v.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)),
+               fontsize="small")
+    return fig
+
+
+def _figure(figsize):
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt.figure(figsize=figsize, layout="constrained")
+
+
 def _figure_grid(nrows: int, ncols: int, size):
     import matplotlib
 
