@@ -160,15 +160,20 @@ def plot_fits(out: Path, rows: list[dict]):
     for ax, row in zip(axes.flat, done, strict=False):
         ax.set_visible(True)
         motion = read_table(out / row["name"] / "fit_motion.csv")
-        for key in motion:
-            if key.endswith("_target_deg"):
-                joint = key.removesuffix("_target_deg")
-                ax.plot(motion["time"], motion[key], "--", color="tab:red", lw=1)
-                ax.plot(motion["time"], motion[f"{joint}_reference_deg"], color="k", lw=1)
+        joints = [key.removesuffix("_target_deg") for key in motion
+                  if key.endswith("_target_deg")]
+        for joint in joints:
+            ax.plot(motion["time"], motion[f"{joint}_reference_deg"], color="k", lw=1.2)
+            # the target on top, dotted, so that it shows where the fit covers it
+            ax.plot(motion["time"], motion[f"{joint}_target_deg"], ls=(0, (2, 2)),
+                    color="tab:red", lw=1.4)
         ax.set_title(f"{row['name']}: {row['reference_rms_deg']:.2f}° RMS", fontsize="small")
+        ax.set_xlabel("time (s)", fontsize="x-small")
+        ax.set_ylabel(f"{', '.join(joints)} (deg)", fontsize="x-small")
         ax.tick_params(labelsize="x-small")
         ax.grid(alpha=0.3)
-    fig.suptitle("target (red, dashed) and fit re-simulated with the reference (black), deg")
+    fig.suptitle("every fit: target (red, dotted) and the fitted model re-simulated with the "
+                 "reference solver (black)", fontsize="medium")
     return fig
 
 
