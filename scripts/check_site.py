@@ -6,6 +6,8 @@ over HTTP, at 1280 and 800 px.
 A page fails when, after it has loaded and its equations have been typeset:
 - text outside code shows raw math (``$$``, ``\\(``, ``\\[``), a KaTeX error, a click sentinel
   (``Sentinel.UNSET``) or a raw Sphinx role (``:func:``, ``:class:``, ``:meth:``, ...);
+- markup was garbled (an element with an attribute no HTML element has: Markdown's
+  ``attr_list`` read text such as ``x_{k-1}`` as attributes and ate letters around it);
 - a figure does not decode;
 - the page, a figure, or the text of a table cell (header cells included) is wider than the
   window or than its cell.
@@ -42,6 +44,19 @@ function torquesimCheck() {
   document.querySelectorAll('article th, article td').forEach((c) => {
     if (c.scrollWidth > c.clientWidth + 1)
       bad.push('table cell "' + c.textContent.trim().slice(0, 30) + '" overflows its cell');
+  });
+  // Markdown's attr_list turns text such as x_{k-1} into attributes of a made-up element
+  // (<em k_1>) and eats the letters around it: an attribute no HTML element has gives it away.
+  const known = new RegExp('^(class|id|href|src|alt|title|style|width|height|colspan|rowspan'
+    + '|align|role|type|name|value|target|rel|lang|dir|tabindex|loading|decoding|srcset|sizes'
+    + '|start|for|hidden|open|checked|disabled|download|viewbox|xmlns|d|fill|stroke'
+    + '|aria-.*|data-.*)$', 'i');
+  document.querySelectorAll('article *').forEach((e) => {
+    if (e.closest('.katex, svg, math')) return;
+    for (const a of e.attributes)
+      if (!known.test(a.name))
+        bad.push('garbled markup <' + e.tagName.toLowerCase() + ' ' + a.name + '> near "'
+                 + e.textContent.trim().slice(0, 30) + '"');
   });
   if (document.querySelectorAll('.katex-error').length)
     bad.push(document.querySelectorAll('.katex-error').length + ' equations do not typeset');

@@ -16,7 +16,8 @@ needs_chromium = pytest.mark.skipif(
 
 
 @needs_chromium
-def test_the_site_checker_finds_raw_math_sentinels_roles_and_overflowing_cells(tmp_path):
+def test_the_site_checker_finds_raw_math_sentinels_roles_garbling_and_overflowing_cells(
+        tmp_path):
     good = tmp_path / "site" / "good"
     bad = tmp_path / "site" / "bad"
     good.mkdir(parents=True)
@@ -25,7 +26,8 @@ def test_the_site_checker_finds_raw_math_sentinels_roles_and_overflowing_cells(t
         "<html><body><article><p>T = k·s</p><code>$$x$$ :func: Sentinel.UNSET</code>"
         "</article></body></html>")
     (bad / "index.html").write_text(
-        "<html><body><article><p>$$T = k s$$ see :func:`simulate` default Sentinel.UNSET</p>"
+        "<html><body><article><p>$$T = k s$$ see :func:`simulate` default Sentinel.UNSET"
+        " then q̈ = φ̈<em k_1>k − φ̈</em></p>"
         "<table style='width:100px;table-layout:fixed'><tr><th style='width:50px;"
         "white-space:nowrap;overflow:hidden'>a_header_far_too_long_for_its_cell</th></tr>"
         "</table></article></body></html>")
@@ -38,7 +40,7 @@ def test_the_site_checker_finds_raw_math_sentinels_roles_and_overflowing_cells(t
     assert len(bad_lines) == 2
     for line in bad_lines:
         assert "raw math" in line and "click sentinel" in line and "raw Sphinx role" in line
-        assert "overflows its cell" in line
+        assert "overflows its cell" in line and "garbled markup" in line
 
 
 def test_the_study_page_holds_its_generated_blocks():
