@@ -57,10 +57,14 @@ def plot_sweep(chain, histories: np.ndarray, frame, parameters: list[str], rho: 
             ax.fill_between(t, p5, p95, color="tab:blue", alpha=0.2, label="5–95 %")
             ax.fill_between(t, p25, p75, color="tab:blue", alpha=0.4, label="25–75 %")
             ax.plot(t, p50, color="tab:blue", label="median")
+        else:
+            ax.text(0.5, 0.5, "no accurate sample", transform=ax.transAxes, ha="center",
+                    color="grey")
         ax.set_ylabel(f"{joint.coordinate} (deg)")
         ax.set_xlabel("time (s)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize="small", loc="best")
+        if accurate.shape[0]:
+            ax.legend(fontsize="small", loc="best")
         peak = f"peak_{joint.name}_deg"
         for k, name in enumerate(parameters):
             ax = axes[j, 1 + k]
@@ -84,7 +88,7 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> 
     out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out / "sweep.csv", frame.to_csv(index=False))
     grid = np.linspace(0.0, chain.duration, histories.shape[2])
-    finished = histories[~np.isnan(histories[:, 0, 0])]
+    finished = histories[(frame["accuracy"] == "ok").to_numpy()]  # as the figure: accurate
     bands = {"time": grid}
     for j, joint in enumerate(chain.joints):
         if finished.shape[0]:
