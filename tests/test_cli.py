@@ -138,7 +138,7 @@ def test_a_cold_start_is_announced_before_the_pause(capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.startswith("compiling the integrators with Numba (once per install")
     monkeypatch.undo()
-    assert fs.compiled_on_disk()  # this run compiled or loaded them
+    assert fs.compiled_on_disk(fs.rk4_monolithic)  # this run compiled or loaded it
     assert main(["simulate", "--duration", "0.05"]) == 0
     assert "compiling" not in capsys.readouterr().err
 

@@ -98,7 +98,11 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
     fixed = method != "reference"
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
     _announce_size(model, method, step, duration, out_path)
-    _announce_compiling()
+    from .solvers import fixed_step
+
+    if fixed:
+        _announce_compiling(fixed_step.rk4_monolithic if method == "monolithic"
+                            else fixed_step.rk4_partitioned)
     result = run(model, method, step, duration=duration, tolerance=check if fixed else None)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
@@ -157,12 +161,12 @@ LARGE_TABLE_BYTES = 200e6
 
 
 def _announce_compiling(*kernels) -> None:
-    """One line before the pause when the compiled loops (and ``kernels``) are not on disk
-    yet."""
+    """One line before the pause when the compiled ``kernels`` a command needs are not on
+    disk yet."""
     from .solvers.fixed_step import compiled_on_disk
 
     if not compiled_on_disk(*kernels):
-        click.echo("compiling the integrators with Numba (once per install, about a minute; "
+        click.echo("compiling the integrators with Numba (once per install, up to a minute; "
                    "later runs start in seconds) ...", err=True)
 
 

@@ -515,12 +515,12 @@ def new_stats() -> np.ndarray:
 
 
 def compiled_on_disk(*kernels) -> bool:
-    """Whether the solver loops (and any other compiled ``kernels``) are in Numba's disk cache
-    (else the first run compiles them: about a minute, once per install)."""
+    """Whether the compiled ``kernels`` (Numba dispatchers) are in Numba's disk cache (else
+    their first run compiles them, once per install)."""
     import os
 
     try:
         return all(os.path.exists(kernel._cache._cache_file._index_path)
-                   for kernel in (rk4_monolithic, rk4_partitioned, *kernels))
+                   for kernel in kernels)
     except AttributeError:  # another Numba: assume cached rather than say something wrong
         return True
