@@ -236,6 +236,16 @@ def test_ctrl_c_keeps_what_finished_and_the_rerun_completes_the_rest(client, tmp
 
     with pytest.raises(KeyboardInterrupt):
         fit_many(targets, out=out, client=client, progress=interrupt, **FAST_FIT)
+    # nothing keeps writing into the folder once the call has returned: running fits were
+    # asked to stop and were waited for
+    import time
+
+    def snapshot():
+        return {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
+
+    before = snapshot()
+    time.sleep(2.0)
+    assert snapshot() == before
     rows = (out / "batch.csv").read_text().splitlines()
     assert len(rows) == 3 and ",done," in rows[1]
     # the other fit: never started ("not run") or stopped with its best so far written
