@@ -40,9 +40,9 @@ def commands(text: str) -> list[str]:
 
 
 def written(command: str) -> list[str]:
-    """The paths a command says it writes (--out, --plot)."""
+    """The paths a command says it writes (--out, --plot, --animate)."""
     args = shlex.split(command)
-    return [args[i + 1] for i, a in enumerate(args[:-1]) if a in ("--out", "--plot")]
+    return [args[i + 1] for i, a in enumerate(args[:-1]) if a in ("--out", "--plot", "--animate")]
 
 
 def main(argv=None) -> int:

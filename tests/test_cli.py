@@ -193,3 +193,23 @@ def test_model_plot_draws_the_chain_and_the_unit_curves(tmp_path, capsys):
     capsys.readouterr()
     assert main(["model", "arm-raise"]) == 2  # nothing to write
     assert "--out" in capsys.readouterr().err
+
+
+def test_simulate_animates_the_motion_as_a_stick_figure(tmp_path, capsys):
+    """25 frames per simulated second, the stick figure at the simulated angles."""
+    from PIL import Image
+
+    from torquesim.plots import joint_positions
+
+    gif = tmp_path / "curl.gif"
+    assert main(["simulate", "--duration", "0.4", "--animate", str(gif)]) == 0
+    with Image.open(gif) as im:
+        assert im.format == "GIF" and im.n_frames == 11
+    assert not list(tmp_path.glob(".*"))  # no temporary file left
+    capsys.readouterr()
+    assert main(["simulate", "--duration", "0.4", "--animate", str(tmp_path / "x.mp4")]) == 2
+    assert "--animate" in capsys.readouterr().err
+    # the drawn geometry: a straight, hanging elbow chain ends one segment length below
+    model = ts.load_model("builtin:arm-raise")
+    points = joint_positions(model, [[0.0, 0.0]])
+    assert points[0, 1] == pytest.approx([0.0, -model.segments[0].length])

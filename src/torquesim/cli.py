@@ -80,11 +80,15 @@ def cli():
                    ".manifest.json beside it.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Write a figure of angle, torques and activations (.png, .pdf, .svg).")
+@click.option("--animate", "animation_path", type=click.Path(dir_okay=False),
+              help="Write the motion as a stick-figure animation (.gif), 25 frames per "
+                   "simulated second.")
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Fixed-step methods: estimate the max angle error against a run at twice "
                    "the step (half a run's work; at half the step when that is above the "
                    "tolerance) and warn above this many degrees; 0 turns the estimate off.")
-def simulate(model_path, method, step, duration, out_path, plot_path, tolerance):
+def simulate(model_path, method, step, duration, out_path, plot_path, animation_path,
+             tolerance):
     """Simulate the model and print a summary (or write --out / --plot)."""
     import numpy as np
 
@@ -94,6 +98,7 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
 
     _check_output(out_path, (".csv", ".sto", ".mot"), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
+    _check_output(animation_path, (".gif",), "--animate")
     model = load_model(model_path)
     fixed = method != "reference"
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
@@ -114,6 +119,10 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
         from .plots import plot_result, save_figure
 
         save_figure(plot_result(result), plot_path, "--plot")
+    if animation_path:
+        from .plots import animate_result
+
+        animate_result(result, animation_path)
     lines = [
         f"model         {result.model.name} ({result.model.n_joints} joint"
         f"{'s' if result.model.n_joints > 1 else ''}, {result.model.n_units} units)",
@@ -151,6 +160,8 @@ def simulate(model_path, method, step, duration, out_path, plot_path, tolerance)
         lines.append(f"wrote         {out_path}")
     if plot_path:
         lines.append(f"wrote         {plot_path}")
+    if animation_path:
+        lines.append(f"wrote         {animation_path}")
     click.echo("\n".join(lines))
 
 

@@ -150,6 +150,70 @@ def plot_model(model):
     return fig
 
 
+def joint_positions(model, q) -> np.ndarray:
+    """Positions (m) of the base, every joint and the end of the last segment for joint
+    angles ``q`` (rad, rows of time × joints): shape (time, segments + 1, 2), the base at the
+    origin, y up, segments hanging down at zero absolute angle."""
+    q = np.atleast_2d(q)
+    phi = model.base_angle + np.cumsum(q, axis=1)
+    lengths = np.array([seg.length if seg.length > 0 else
+                        max([2 * seg.com_distance, *(ld.distance for ld in seg.loads)])
+                        for seg in model.segments])
+    steps = np.stack([np.sin(phi), -np.cos(phi)], axis=2) * lengths[None, :, None]
+    return np.concatenate([np.zeros((q.shape[0], 1, 2)), np.cumsum(steps, axis=1)], axis=1)
+
+
+def animate_result(result, path, *, fps: int = 25) -> None:
+    """Write the motion as a stick-figure animation (GIF by Pillow), ``fps`` frames per second
+    of simulated time, each frame with the time and every joint's angle in degrees."""
+    from matplotlib import animation
+
+    times = np.arange(0.0, result.time[-1] + 1e-12, 1.0 / fps)
+    q = np.column_stack([np.interp(times, result.time, result.q[:, j])
+                         for j in range(result.model.n_joints)])
+    points = joint_positions(result.model, q)
+    fig = _figure(figsize=(5.0, 5.0))
+    ax = fig.add_subplot()
+    span = np.abs(points).max() * 1.15
+    ax.set_xlim(-span, span)
+    ax.set_ylim(-span, span)
+    ax.set_aspect("equal")
+    ax.grid(alpha=0.3)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    (line,) = ax.plot([], [], "-o", color="k", lw=3, ms=7, mfc="tab:blue")
+    label = ax.text(0.02, 0.97, "", transform=ax.transAxes, va="top", fontsize="small")
+    names = [j.coordinate for j in result.model.joints]
+
+    def frame(i):
+        line.set_data(points[i, :, 0], points[i, :, 1])
+        label.set_text(f"t = {times[i]:.2f} s\n" + "\n".join(
+            f"{name} {np.degrees(angle):.1f}°" for name, angle in zip(names, q[i], strict=True)))
+        return line, label
+
+    ax.set_title(f"{result.model.name}, {result.method}", fontsize="medium")
+    movie = animation.FuncAnimation(fig, frame, frames=len(times), blit=True)
+    import os
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    from .errors import ModelError
+
+    path = Path(path)
+    # Pillow picks the format from the name: the temporary file keeps the .gif suffix
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.gif")
+    try:
+        movie.save(tmp, writer=animation.PillowWriter(fps=fps))
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise ModelError("--animate", f"cannot write {str(path)!r}: "
+                         f"{exc.strerror or exc}") from None
+    finally:
+        tmp.unlink(missing_ok=True)
+        plt.close(fig)
+
+
 def _figure(figsize):
     import matplotlib
 
