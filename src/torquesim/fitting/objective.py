@@ -28,6 +28,7 @@ from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
 #: Score of a candidate whose simulation failed or broke the stability guard, deg.
 FAILED_SCORE = 1.0e4
+MONOLITHIC, PARTITIONED = 0, 1
 PROFILE_SIZE = 2 + 3 * RAMPS_PER_UNIT
 DEG = 180.0 / math.pi
 
@@ -66,41 +67,36 @@ def sample_joint(states, step, times, joint, n, theta_out, omega_out):
 
 
 @njit(cache=True, error_model="numpy")
-def simulate_candidate(x, coupling, y0, step, n_steps, seg, joints, units, levels,
+def simulate_candidate(x, method, coupling, y0, step, n_steps, seg, joints, units, levels,
                        explicit_muscles, times, scored, theta_out, omega_out, profiles):
     """Simulate the ramp vector ``x`` (9 per unit) on the packed chain, unit u starting at
     ``levels[u]``; fill q, q̇ of the ``scored`` joints at ``times`` (rows of ``theta_out``,
     ``omega_out``) and the packed ``profiles``. True if the run is usable (finite, not
     diverged, within the RK4 stability limit when explicit).
 
-    ``coupling`` None: monolithic RK4; else the partitioned technique with that coupling
-    array. Numba prunes the branch of the other technique when it compiles each case, so a fit
-    compiles only the loops it runs.
-
     The parameter arrays are copied first: candidates run in parallel threads, and the step
     loops' reference counting on arrays shared between threads would contend (measured: the
     population scored 2.3x slower).
     """
-    seg, joints, units, y0 = seg.copy(), joints.copy(), units.copy(), y0.copy()
+    seg, joints, units, y0, coupling = seg.copy(), joints.copy(), units.copy(), y0.copy(), \
+        coupling.copy()
     n = seg.shape[0]
     for u in range(levels.shape[0]):
         pack_profile(x, u * PER_UNIT, levels[u], profiles[u])
     states = np.empty((n_steps + 1, y0.shape[0]))
     stats = np.zeros(fs.STATS_SIZE)
-    if coupling is None:
+    if method == MONOLITHIC:
         if n == 1:
             fs.rk4_monolithic(y0, step, n_steps, seg, joints, units, profiles, states, stats)
         else:
             fs.rk4_monolithic(y0, step, n_steps, seg, joints, units, profiles, states, stats,
                               True)
+    elif n == 1:
+        fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, coupling, states,
+                           stats)
     else:
-        exchange = coupling.copy()
-        if n == 1:
-            fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, exchange,
-                               states, stats)
-        else:
-            fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, exchange,
-                               states, stats, True)
+        fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, coupling, states,
+                           stats, True)
     if stats[fs.STATUS] != fs.OK:
         return False
     if explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
@@ -147,20 +143,19 @@ def residual_size(n_rows: int, n_samples: int, n_units: int, weight_velocity: fl
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def residual_population(population, coupling, y0, step, n_steps, seg, joints, units,
+def residual_population(population, method, coupling, y0, step, n_steps, seg, joints, units,
                         levels, rests, explicit_muscles, times, scored, target_theta,
                         target_omega, weights, weight_velocity, weight_end, weight_effort,
                         residuals, failed):
     """Residuals (rows of ``residuals``) and failure flags of every row of ``population``
-    (m × 9U), simulated in parallel threads; ``coupling`` None for monolithic RK4 (see
-    `simulate_candidate`)."""
+    (m × 9U), simulated in parallel threads."""
     n_rows, n_samples = target_theta.shape
     failed_value = FAILED_SCORE / math.sqrt(residuals.shape[1])
     for j in prange(population.shape[0]):
         theta = np.empty((n_rows, n_samples))
         omega = np.empty((n_rows, n_samples))
         profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
-        ok = simulate_candidate(population[j], coupling, y0, step, n_steps, seg, joints,
+        ok = simulate_candidate(population[j], method, coupling, y0, step, n_steps, seg, joints,
                                 units, levels, explicit_muscles, times, scored, theta, omega,
                                 profiles)
         if ok:

@@ -145,8 +145,8 @@ class FitProblem:
         failed = np.zeros(population.shape[0], dtype=np.bool_)
         seg, joints, units = self.arrays
         obj.residual_population(
-            population, None if self.method == "monolithic" else self.coupling.to_array(),
-            self.y0, self.step, self.n_steps, seg, joints, units,
+            population, obj.MONOLITHIC if self.method == "monolithic" else obj.PARTITIONED,
+            self.coupling.to_array(), self.y0, self.step, self.n_steps, seg, joints, units,
             self.levels, self.rests, self.explicit_muscles, self.times, self.scored,
             self.target_angles, self.target_omega, self.weights, self.weight_velocity,
             self.weight_end, self.weight_effort, out, failed)
