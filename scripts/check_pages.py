@@ -51,9 +51,20 @@ def chromium() -> str | None:
     return None
 
 
-def _run(browser: str, *args: str) -> str:
+def found_chromium() -> str | None:
+    """`chromium`, or None after saying on stderr how to get one."""
+    browser = chromium()
+    if browser is None:
+        print("no Chromium found: install chromium or set CHROMIUM", file=sys.stderr)
+    return browser
+
+
+def headless(browser: str, *args: str, budget_ms: int = 10000) -> str:
+    """Run headless Chromium with ``args`` (no network of its own, no first-run work) and
+    return what it prints."""
     cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-           "--virtual-time-budget=10000", *args]
+           "--disable-background-networking", "--disable-component-update", "--no-first-run",
+           "--disable-sync", f"--virtual-time-budget={budget_ms}", *args]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True).stdout
 
 
@@ -66,10 +77,10 @@ def check_page(page: Path, browser: str, width: int, screenshot: Path | None = N
         base = f"<base href='{page.resolve().parent.as_uri()}/'>"
         probe.write_text(re.sub(r"(<head[^>]*>)", lambda m: m.group(1) + base, text, count=1),
                          encoding="utf-8")
-        dom = _run(browser, f"--window-size={width},900", "--dump-dom", probe.as_uri())
+        dom = headless(browser, f"--window-size={width},900", "--dump-dom", probe.as_uri())
         if screenshot is not None:
-            _run(browser, f"--window-size={width},3000", f"--screenshot={screenshot}",
-                 page.resolve().as_uri())
+            headless(browser, f"--window-size={width},3000", f"--screenshot={screenshot}",
+                     page.resolve().as_uri())
     found = re.search(r'data-page-check="([^"]*)"', dom)
     return found.group(1) if found else "the page did not finish loading"
 
@@ -79,9 +90,8 @@ def main(argv=None) -> int:
     parser.add_argument("pages", nargs="+", type=Path)
     parser.add_argument("--screenshots", type=Path, help="folder for PNG screenshots")
     args = parser.parse_args(argv)
-    browser = chromium()
+    browser = found_chromium()
     if browser is None:
-        print("no Chromium found: install chromium or set CHROMIUM", file=sys.stderr)
         return 2
     if args.screenshots:
         args.screenshots.mkdir(parents=True, exist_ok=True)

@@ -22,14 +22,13 @@ import functools
 import http.server
 import re
 import shutil
-import subprocess
 import sys
 import tempfile
 import threading
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from check_pages import WIDTHS, chromium  # noqa: E402
+from check_pages import WIDTHS, found_chromium, headless  # noqa: E402
 
 CHECK = r"""<script>
 function torquesimCheck() {
@@ -91,21 +90,12 @@ def _serve(folder: Path) -> tuple[http.server.ThreadingHTTPServer, str]:
     return server, f"http://127.0.0.1:{server.server_address[1]}"
 
 
-def _dom(browser: str, url: str, width: int) -> str:
-    cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-           "--disable-background-networking", "--disable-component-update", "--no-first-run",
-           "--disable-sync", "--virtual-time-budget=15000", f"--window-size={width},900",
-           "--dump-dom", url]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True).stdout
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("site", type=Path, help="the folder mkdocs built")
     args = parser.parse_args(argv)
-    browser = chromium()
+    browser = found_chromium()
     if browser is None:
-        print("no Chromium found: install chromium or set CHROMIUM", file=sys.stderr)
         return 2
     pages = sorted(p.relative_to(args.site) for p in args.site.rglob("index.html"))
     if not pages:
@@ -125,7 +115,9 @@ def main(argv=None) -> int:
             for page in pages:
                 url = f"{root}/{page.parent.as_posix()}/".replace("/./", "/")
                 for width in WIDTHS:
-                    found = re.search(r'data-page-check="([^"]*)"', _dom(browser, url, width))
+                    dom = headless(browser, f"--window-size={width},900", "--dump-dom", url,
+                                   budget_ms=15000)
+                    found = re.search(r'data-page-check="([^"]*)"', dom)
                     verdict = found.group(1) if found else "the page did not finish loading"
                     failed += verdict != "OK"
                     print(f"{page.parent.as_posix() or '/'} at {width} px: "

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import math
 import re
 import sys
@@ -617,27 +616,18 @@ def _engine_options(fn):
     return click.option("--quiet", is_flag=True, help="No progress bar or lines.")(fn)
 
 
-@contextlib.contextmanager
 def _interruptible():
     """SIGINT and SIGTERM raise KeyboardInterrupt in this process while the batch runs, even
     when it was started with SIGINT ignored (a background job of a script): the batch then
     cancels, stops its tasks, writes what finished and exits 130."""
     import signal
-    import threading
 
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
+    from .batch.engine import signals_handled
 
     def interrupt(_signum, _frame):
         raise KeyboardInterrupt
 
-    previous = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    return signals_handled(interrupt, signal.SIGINT, signal.SIGTERM)
 
 
 def _batch_progress(quiet: bool, label: str):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import os
 import re
+import signal
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -73,12 +74,15 @@ def connect(client=None, *, workers: int | None = None, scheduler: str | None = 
     from distributed import Client, LocalCluster
 
     _quiet_dask()
-    # Forked workers start with this process's modules already imported (measured: a
-    # 5000-sample sweep command 1.41x faster on 2 workers than on 1 with spawned workers,
-    # 1.54x with forked ones); spawn where there is no fork.
+    # Forked workers start with this process's modules already imported (measured, a
+    # 5000-sample sweep command on 2 workers against 1: 1.41-1.46x with spawned workers,
+    # 1.52-1.65x with forked ones, benchmarks/bench_batch.py); spawn where there is no fork.
     method = "fork" if hasattr(os, "fork") else "spawn"
     with dask.config.set({"distributed.worker.multiprocessing-method": method}):
-        with _workers_ignore_ctrl_c():  # only while the worker processes are made
+        # Workers forked meanwhile ignore Ctrl-C: it reaches the whole process group, and only
+        # the client should act on it (cancel, stop, wait, one line), not every worker with
+        # a traceback.
+        with signals_handled(signal.SIG_IGN, signal.SIGINT):
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                    dashboard_address=":0", silence_logs=logging.ERROR)
         with cluster, Client(cluster) as local:
@@ -86,21 +90,20 @@ def connect(client=None, *, workers: int | None = None, scheduler: str | None = 
 
 
 @contextmanager
-def _workers_ignore_ctrl_c() -> Iterator:
-    """Worker processes forked while this is entered ignore SIGINT: Ctrl-C in a terminal
-    reaches the whole process group, and only the client should act on it (cancel, stop,
-    wait, one line) instead of every worker printing a traceback."""
-    import signal
+def signals_handled(handler, *signals) -> Iterator:
+    """``handler`` for ``signals`` while inside (in the main thread; elsewhere nothing
+    changes), the previous handlers restored after."""
     import threading
 
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    previous = {sig: signal.signal(sig, handler) for sig in signals}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def _quiet_dask() -> None:

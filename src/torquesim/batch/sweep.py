@@ -186,7 +186,7 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
     n = base.n_joints
     m = values.shape[0]
     numbers = np.full((m, 3 * n + 2), np.nan)
-    guard = ["failed"] * m
+    accuracy = ["failed"] * m
     errors = [""] * m
     grid = np.linspace(0.0, base.duration, HISTORY_POINTS)
     histories = np.full((m, n, HISTORY_POINTS), np.nan, dtype=np.float32)
@@ -210,13 +210,13 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
         numbers[i, -2] = max_unit_torque(model, result.states)
         numbers[i, -1] = math.degrees(result.settings.get("estimated_error_rad", math.nan))
         if result.stability is not None and result.stability.exceeded:
-            guard[i] = "unstable"
+            accuracy[i] = "unstable"
         elif result.message:
-            guard[i] = "inaccurate"
+            accuracy[i] = "inaccurate"
         else:
-            guard[i] = "ok"
+            accuracy[i] = "ok"
         errors[i] = result.message
-    return {"numbers": numbers, "guard": guard, "errors": errors, "histories": histories,
+    return {"numbers": numbers, "accuracy": accuracy, "errors": errors, "histories": histories,
             "worker": worker_name()}
 
 
@@ -414,9 +414,9 @@ def _assemble(chain, paths, values, parts):
     columns = outcome_columns(chain)
     for i, name in enumerate(columns[:-2]):
         table[name] = numbers[:, i]
-    table["accuracy"] = [g for p in parts for g in p["guard"]]
+    table["accuracy"] = [g for p in parts for g in p["accuracy"]]
     table["error"] = [e for p in parts for e in p["errors"]]
-    table["worker"] = [p["worker"] for p in parts for _ in p["guard"]]
+    table["worker"] = [p["worker"] for p in parts for _ in p["accuracy"]]
     table.insert(0, "sample", np.arange(len(table)))
     histories = np.concatenate([p["histories"] for p in parts])
     return table, histories
@@ -428,7 +428,7 @@ def _save_chunk(path: Path, result: dict, key: str) -> None:
     def write(tmp: Path) -> None:
         with tmp.open("wb") as fh:
             np.savez(fh, numbers=result["numbers"], histories=result["histories"],
-                     meta=json.dumps({"fingerprint": key, "guard": result["guard"],
+                     meta=json.dumps({"fingerprint": key, "accuracy": result["accuracy"],
                                       "errors": result["errors"], "worker": result["worker"]}))
 
     write_atomic(path, write)
@@ -444,6 +444,7 @@ def _load_chunk(path: Path, key: str) -> dict | None:
             if meta.get("fingerprint") != key:
                 return None
             return {"numbers": data["numbers"], "histories": data["histories"],
-                    "guard": meta["guard"], "errors": meta["errors"], "worker": meta["worker"]}
+                    "accuracy": meta["accuracy"], "errors": meta["errors"],
+                    "worker": meta["worker"]}
     except Exception:  # noqa: BLE001 - a damaged chunk is simply simulated again
         return None

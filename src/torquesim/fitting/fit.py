@@ -266,10 +266,11 @@ def fit_to_accuracy(problem: FitProblem, settings: SearchSettings = SearchSettin
     refinements: list[dict] = []
     while not outcome.interrupted and outcome.score < FAILED_SCORE:
         gap = integration_gap(problem, outcome.x)
+        agreed = agrees(gap)
         refinements.append({"step_s": problem.step, "joints": {
             j: {"rms_error_deg": own, "reference_rms_error_deg": ref}
-            for j, (own, ref) in gap.items()}, "agree": agrees(gap)})
-        if agrees(gap) or len(refinements) > MAX_REFINEMENTS:
+            for j, (own, ref) in gap.items()}, "agree": agreed})
+        if agreed or len(refinements) > MAX_REFINEMENTS:
             break
         worst = max(gap, key=lambda j: abs(gap[j][1] - gap[j][0]))
         finer = replace(problem, step=problem.step / 2, simulations=problem.simulations,
@@ -375,6 +376,7 @@ class _Run:
         self.problem, self.settings = problem, settings
         self.checkpoint, self.say, self.should_stop = checkpoint, say, should_stop
         self._tick, self._last_tick = tick, None
+        self.tick = None if tick is None else self._tick_remembered
         self.space = problem.space
         self.free = self.space.free
         self.start = time.perf_counter()
@@ -398,19 +400,12 @@ class _Run:
             self.interrupted = True
         return self.interrupted or self.out_of_time()
 
-    @property
-    def tick(self):
-        """The caller's ``tick(stage, done, total)``, remembering the last call so that every
+    def _tick_remembered(self, stage, done, total) -> None:
+        """The caller's ``tick(stage, done, total)``, the call remembered so that every
         simulation batch can repeat it (a log then hears from a long stage every few
         seconds)."""
-        if self._tick is None:
-            return None
-
-        def tick(stage, done, total):
-            self._last_tick = (stage, done, total)
-            self._tick(stage, done, total)
-
-        return tick
+        self._last_tick = (stage, done, total)
+        self._tick(stage, done, total)
 
     def keep(self, x_free, score) -> None:
         if self._tick is not None and self._last_tick is not None:

@@ -65,9 +65,10 @@ def simulate(
     model : ChainModel or ElbowModel, optional
         Any planar chain (`torquesim.load_model` of a file or ``"builtin:NAME"``); an
         ElbowModel is simulated as its one-segment chain.
-    method : {"monolithic", "partitioned", "reference"} or "scipy:NAME"
+    method : {"monolithic", "partitioned", "imex", "reference"} or "scipy:NAME"
         ``monolithic``: classical RK4 on the whole state. ``partitioned``: each part with its
         own RK4, exchanging at step boundaries as ``coupling`` says (default zero-order hold).
+        ``imex``: the body on explicit RK4, each unit's CE equation on implicit SDIRK2.
         ``reference``: SciPy Radau at ``rtol`` (default 1e-10). ``scipy:RK45`` etc.: that SciPy
         solver on the whole system.
     step : float
@@ -191,6 +192,7 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
                    implicit_solves=int(stats[fs.IMPLICIT_SOLVES]))
     settings = {"step": step, "steps": n}
     if method == "partitioned":
+        settings["coupling"] = coupling.__dict__.copy()
         # The exchange's jumps at the step ends (a diagnostic, not the accuracy check: see
         # docs/study.md, "No wrong run without a word").
         settings["coupling_jump"] = {
@@ -198,8 +200,6 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
             "largest_torque_jump_nm": float(stats[fs.COUPLING_TORQUE_MAX]),
             "largest_at_s": float(stats[fs.COUPLING_TIME]),
             "angle_jump_sum_rad": float(stats[fs.COUPLING_ANGLE])}
-    if method == "partitioned":
-        settings["coupling"] = coupling.__dict__.copy()
     return SimulationResult(model, packed, times, out[: done + 1], label, float(step), cost,
                             stability, status, message, settings)
 

@@ -159,13 +159,7 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
     total = repeats * len(jobs)
     for round_ in range(repeats):
         for i, (tech, setting) in enumerate(jobs):
-            kwargs = dict(initial_state=initial_state, check=False, advise=False,
-                          tolerance=None)
-            if tech.adaptive:
-                kwargs.update(rtol=setting, atol=setting * 1e-3, output_step=GRID)
-            else:
-                kwargs.update(step=setting, coupling=tech.coupling)
-            result = simulate(model, tech.method, **kwargs)
+            result = _run(model, tech, setting, initial_state)
             times[i].append(float(timer(result)))
             if round_ == 0:
                 rows.append(_row(tech, setting, result, reference, model))
@@ -177,10 +171,7 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
     for round_ in range(rounds):
         for k, i in enumerate(calibration):
             tech, setting = jobs[i]
-            result = simulate(model, tech.method, step=setting, coupling=tech.coupling,
-                              initial_state=initial_state, check=False, advise=False,
-                              tolerance=None)
-            times[i].append(float(timer(result)))
+            times[i].append(float(timer(_run(model, tech, setting, initial_state))))
             if progress:
                 progress(round_ * len(calibration) + k + 1, rounds * len(calibration),
                          f"calibration {tech.name}")
@@ -190,6 +181,17 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
                    wall_time_max_s=max(readings), wall_times_s=tuple(readings))
     calibrate(rows)
     return [{c: row.get(c) for c in columns} for row in rows], reference
+
+
+def _run(model, tech: Technique, setting: float, initial_state):
+    """One run of the study: ``tech`` at step (or rtol) ``setting``, no advice and no accuracy
+    check (the study measures the error against its reference itself)."""
+    kwargs = dict(initial_state=initial_state, check=False, advise=False, tolerance=None)
+    if tech.adaptive:
+        kwargs.update(rtol=setting, atol=setting * 1e-3, output_step=GRID)
+    else:
+        kwargs.update(step=setting, coupling=tech.coupling)
+    return simulate(model, tech.method, **kwargs)
 
 
 def _calibration_jobs(rows: list[dict], jobs) -> list[int]:
