@@ -9,8 +9,8 @@ A page fails when, after it has loaded and its equations have been typeset:
 - markup was garbled (an element with an attribute no HTML element has: Markdown's
   ``attr_list`` read text such as ``x_{k-1}`` as attributes and ate letters around it);
 - a figure does not decode;
-- the page, a figure, or the text of a table cell (header cells included) is wider than the
-  window or than its cell.
+- the page, a figure, an equation, or the text of a table cell (header cells included) is
+  wider than the window or than its cell.
 Exit code 0 when every page passes, 1 otherwise, 2 when no Chromium is found (install Debian's
 ``chromium`` or set ``CHROMIUM``). ``.ci/run`` runs it after the strict build.
 """
@@ -56,6 +56,10 @@ function torquesimCheck() {
       if (!known.test(a.name))
         bad.push('garbled markup <' + e.tagName.toLowerCase() + ' ' + a.name + '> near "'
                  + e.textContent.trim().slice(0, 30) + '"');
+  });
+  document.querySelectorAll('article .katex-display, article .arithmatex').forEach((e) => {
+    if (e.scrollWidth > e.clientWidth + 1)
+      bad.push('equation "' + e.textContent.trim().slice(0, 30) + '" wider than the page');
   });
   if (document.querySelectorAll('.katex-error').length)
     bad.push(document.querySelectorAll('.katex-error').length + ' equations do not typeset');

@@ -27,7 +27,8 @@ def test_the_site_checker_finds_raw_math_sentinels_roles_garbling_and_overflowin
         "</article></body></html>")
     (bad / "index.html").write_text(
         "<html><body><article><p>$$T = k s$$ see :func:`simulate` default Sentinel.UNSET"
-        " then q̈ = φ̈<em k_1>k − φ̈</em></p>"
+        " then q̈ = φ̈<em k_1>k − φ̈</em></p><div class='arithmatex' style='width:60px;"
+        "overflow-x:auto'><span style='display:inline-block;width:600px'>T = k s</span></div>"
         "<table style='width:100px;table-layout:fixed'><tr><th style='width:50px;"
         "white-space:nowrap;overflow:hidden'>a_header_far_too_long_for_its_cell</th></tr>"
         "</table></article></body></html>")
@@ -41,6 +42,7 @@ def test_the_site_checker_finds_raw_math_sentinels_roles_garbling_and_overflowin
     for line in bad_lines:
         assert "raw math" in line and "click sentinel" in line and "raw Sphinx role" in line
         assert "overflows its cell" in line and "garbled markup" in line
+        assert "wider than the page" in line
 
 
 def test_the_study_page_holds_its_generated_blocks():
