@@ -1,7 +1,7 @@
 """Chains: the elbow against the elbow-only code it replaced, and cost per step against the
 number of segments.
 
-Run:  python benchmarks/bench_chains.py [--repeats 15] [--rounds 3]
+Run:  python benchmarks/bench_chains.py [--repeats 15] [--rounds 3] [--against COMMIT]
 
 1. **The elbow is unchanged and no slower.** The elbow-only implementation (torquesim 0.1,
    git commit ``FROZEN_COMMIT``) is extracted from the repository's history into a temporary
@@ -10,7 +10,8 @@ Run:  python benchmarks/bench_chains.py [--repeats 15] [--rounds 3]
    ``--repeats`` runs per method after compilation; the two processes alternate for
    ``--rounds`` rounds (so machine load hits both alike) and the ratio current/frozen is
    printed per round. The trajectories of both are compared (max |Δy|, target ≤ 1e-12 rad).
-   Target: monolithic at 0.1 ms within 1.2× of the frozen code.
+   Target: monolithic at 0.1 ms within 1.2× of the frozen code. ``--against COMMIT`` compares
+   with another commit instead (a refactoring's before and after; target 1.05×).
 2. **Cost per RK4 step against chain length.** Chains of 1 to 6 segments (two units per
    joint, constant activations, 1 s at 0.1 ms, monolithic RK4) in this process; ns per step
    and the ratio to the elbow preset, timed alternately with it (median of paired ratios).
@@ -63,12 +64,12 @@ def run_timer(src: Path, cache: Path, repeats: int, save: Path) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def frozen_against_current(repeats: int, rounds: int) -> None:
+def frozen_against_current(repeats: int, rounds: int, commit: str = FROZEN_COMMIT) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         frozen = tmp / "frozen"
         frozen.mkdir()
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", FROZEN_COMMIT, "src"],
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", commit, "src"],
                                  capture_output=True, check=True).stdout
         subprocess.run(["tar", "-x", "-C", str(frozen)], input=archive, check=True)
         sources = {"frozen": frozen / "src", "current": ROOT / "src"}
@@ -91,8 +92,9 @@ def frozen_against_current(repeats: int, rounds: int) -> None:
         print(f"max |y_current − y_frozen| over these runs: {worst:.3g} (target ≤ 1e-12)")
         mono = np.median([x["monolithic 0.1 ms"] / y["monolithic 0.1 ms"]
                           for x, y in zip(results["current"], results["frozen"], strict=True)])
-        print(f"target monolithic within 1.2× of the frozen code: {mono:.2f}× -> "
-              f"{'met' if mono <= 1.2 else 'NOT met'}")
+        limit = 1.2 if commit == FROZEN_COMMIT else 1.05
+        print(f"target monolithic within {limit:g}× of {commit}: {mono:.2f}× -> "
+              f"{'met' if mono <= limit else 'NOT met'}")
 
 
 def test_chain(n: int):
@@ -146,11 +148,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=15)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--against", default=FROZEN_COMMIT,
+                        help="commit to compare the elbow with (default: the frozen 0.1 code)")
+    parser.add_argument("--skip-chains", action="store_true",
+                        help="only the comparison with the other commit")
     args = parser.parse_args()
     start = time.perf_counter()
     print(f"load average at start: {os.getloadavg()[0]:.2f} (2 cores)")
-    frozen_against_current(args.repeats, args.rounds)
-    cost_per_segment_count(args.repeats)
+    frozen_against_current(args.repeats, args.rounds, args.against)
+    if not args.skip_chains:
+        cost_per_segment_count(args.repeats)
     print(f"load average at end: {os.getloadavg()[0]:.2f}; "
           f"benchmark took {time.perf_counter() - start:.0f} s")
 

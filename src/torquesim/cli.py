@@ -105,8 +105,7 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     from .solvers import fixed_step
 
     if fixed:
-        _announce_compiling(fixed_step.rk4_monolithic if method == "monolithic"
-                            else fixed_step.rk4_partitioned)
+        _announce_compiling(fixed_step.run_step_loop)
     result = run(model, method, step, duration=duration, tolerance=check if fixed else None)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)

@@ -28,7 +28,6 @@ from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
 #: Score of a candidate whose simulation failed or broke the stability guard, deg.
 FAILED_SCORE = 1.0e4
-MONOLITHIC, PARTITIONED = 0, 1
 PROFILE_SIZE = 2 + 3 * RAMPS_PER_UNIT
 DEG = 180.0 / math.pi
 
@@ -67,9 +66,10 @@ def sample_joint(states, step, times, joint, n, theta_out, omega_out):
 
 
 @njit(cache=True, error_model="numpy")
-def simulate_candidate(x, method, coupling, y0, step, n_steps, seg, joints, units, levels,
+def simulate_candidate(x, loop, coupling, y0, step, n_steps, seg, joints, units, levels,
                        explicit_muscles, times, scored, theta_out, omega_out, profiles):
-    """Simulate the ramp vector ``x`` (9 per unit) on the packed chain, unit u starting at
+    """Simulate the ramp vector ``x`` (9 per unit) on the packed chain with the step loop the
+    switches ``loop`` choose (a tuple, `fixed_step.step_loop_switches`), unit u starting at
     ``levels[u]``; fill q, q̇ of the ``scored`` joints at ``times`` (rows of ``theta_out``,
     ``omega_out``) and the packed ``profiles``. True if the run is usable (finite, not
     diverged, within the RK4 stability limit when explicit).
@@ -85,18 +85,8 @@ def simulate_candidate(x, method, coupling, y0, step, n_steps, seg, joints, unit
         pack_profile(x, u * PER_UNIT, levels[u], profiles[u])
     states = np.empty((n_steps + 1, y0.shape[0]))
     stats = np.zeros(fs.STATS_SIZE)
-    if method == MONOLITHIC:
-        if n == 1:
-            fs.rk4_monolithic(y0, step, n_steps, seg, joints, units, profiles, states, stats)
-        else:
-            fs.rk4_monolithic(y0, step, n_steps, seg, joints, units, profiles, states, stats,
-                              True)
-    elif n == 1:
-        fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, coupling, states,
-                           stats)
-    else:
-        fs.rk4_partitioned(y0, step, n_steps, seg, joints, units, profiles, coupling, states,
-                           stats, True)
+    fs.run_step_loop(*loop, y0, step, n_steps, seg, joints, units, profiles, coupling, states,
+                     stats)
     if stats[fs.STATUS] != fs.OK:
         return False
     if explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
@@ -143,19 +133,20 @@ def residual_size(n_rows: int, n_samples: int, n_units: int, weight_velocity: fl
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def residual_population(population, method, coupling, y0, step, n_steps, seg, joints, units,
+def residual_population(population, loop, coupling, y0, step, n_steps, seg, joints, units,
                         levels, rests, explicit_muscles, times, scored, target_theta,
                         target_omega, weights, weight_velocity, weight_end, weight_effort,
                         residuals, failed):
     """Residuals (rows of ``residuals``) and failure flags of every row of ``population``
-    (m × 9U), simulated in parallel threads."""
+    (m × 9U), simulated in parallel threads with the step loop chosen by the switches ``loop``
+    (`fixed_step.step_loop_switches`): only that loop is compiled into this function."""
     n_rows, n_samples = target_theta.shape
     failed_value = FAILED_SCORE / math.sqrt(residuals.shape[1])
     for j in prange(population.shape[0]):
         theta = np.empty((n_rows, n_samples))
         omega = np.empty((n_rows, n_samples))
         profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
-        ok = simulate_candidate(population[j], method, coupling, y0, step, n_steps, seg, joints,
+        ok = simulate_candidate(population[j], loop, coupling, y0, step, n_steps, seg, joints,
                                 units, levels, explicit_muscles, times, scored, theta, omega,
                                 profiles)
         if ok:

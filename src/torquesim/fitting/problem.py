@@ -11,6 +11,7 @@ from ..errors import ModelError, check_range
 from ..model.activation import activation
 from ..model.chain import ChainModel, as_chain
 from ..model.presets import preset
+from ..solvers import fixed_step as fs
 from ..solvers.coupling import IMEX, Coupling
 from . import objective as obj
 from .parameters import ParameterSpace, with_ramps
@@ -126,6 +127,8 @@ class FitProblem:
                          "monolithic": Coupling()}[self.method]
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
+        self.step_loop = fs.step_loop_switches(self.method == "monolithic", base.n_joints,
+                                               self.coupling.to_array())
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
         self.target_angles = np.ascontiguousarray(self.target.angles)
@@ -145,7 +148,7 @@ class FitProblem:
         failed = np.zeros(population.shape[0], dtype=np.bool_)
         seg, joints, units = self.arrays
         obj.residual_population(
-            population, obj.MONOLITHIC if self.method == "monolithic" else obj.PARTITIONED,
+            population, self.step_loop,
             self.coupling.to_array(), self.y0, self.step, self.n_steps, seg, joints, units,
             self.levels, self.rests, self.explicit_muscles, self.times, self.scored,
             self.target_angles, self.target_omega, self.weights, self.weight_velocity,

@@ -376,7 +376,7 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
 
 @njit(cache=True, error_model="numpy")
 def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                    general_body=False):
+                    general_body, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -385,15 +385,20 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     Within a step each exchanged signal is affine in time: its step-start value plus a slope
     that is zero (hold), the previous step's change (linear extrapolation) or, once the other
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
-    ``general_body``: see `check_body_kind`.
+    ``general_body``: see `check_body_kind`. The muscle solver (``sdirk_muscles`` or
+    ``rk4_muscles``) and the exchange (``stage_exchange``, the every-stage order, or
+    ``end_exchange``) are switches, True for the one the packed ``coupling`` names and None for
+    the other (`step_loop_switches`), so Numba compiles only the code a run needs.
     """
     check_body_kind(seg, general_body)
+    if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (sdirk_muscles is not None) or \
+            (int(coupling[ORDER]) == EVERY_STAGE) != (stage_exchange is not None):
+        raise ValueError("the coupling array and the step loop's switches disagree")
     order = int(coupling[ORDER])
     predictor = int(coupling[PREDICTOR])
     substeps = int(coupling[MUSCLE_SUBSTEPS])
     sweeps = int(coupling[ITERATIONS])
     tol = coupling[TOLERANCE]
-    implicit_muscles = int(coupling[MUSCLE_SOLVER]) == SDIRK2
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     size = y0.shape[0]
     c = 2 * n
@@ -421,13 +426,13 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                 y[j], x, unit_activation(t, profiles, width, u), b[_OMEGA, u], units, u)
             _record_stiffness(stats, t, hm / tau, u)
         stats[NFEV_MUSCLE] += 1
-        if order == EVERY_STAGE:
+        if stage_exchange is not None:
             _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
                                  y1, general_body)
             stats[NFEV_BODY] += 4
             stats[NFEV_MUSCLE] += 4
             stats[SWEEPS] += 1
-        else:
+        if end_exchange is not None:
             for j in range(n):
                 if predictor == LINEAR and step > 0:
                     b[_Q_SLOPE, j] = y[j] - q_prev[j]
@@ -444,7 +449,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                     b[_OLD, i] = y1[i]
                 if order == MUSCLES_FIRST:
                     _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
-                                 implicit_muscles, b, stats, y1)
+                                 sdirk_muscles, rk4_muscles, b, stats, y1)
                     for j in range(n):
                         b[_Q, j] = y[j] + b[_Q_SLOPE, j]
                     joint_muscle_torques(b[_Q], y1, c, units, nu, b[_TORQUE], n)
@@ -457,7 +462,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                         for j in range(n):
                             b[_Q_SLOPE, j] = y1[j] - y[j]
                     _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
-                                 implicit_muscles, b, stats, y1)
+                                 sdirk_muscles, rk4_muscles, b, stats, y1)
                 stats[NFEV_BODY] += 4
                 stats[SWEEPS] += 1
                 # Later sweeps see the other part's end-of-step values (waveform relaxation).
@@ -500,13 +505,57 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, implicit, b, stats, y_new):
-    """Advance the muscle part over one body step with explicit RK4 or implicit SDIRK2."""
-    if implicit:
+def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b, stats,
+                 y_new):
+    """Advance the muscle part over one body step with implicit SDIRK2 (``sdirk`` True) or
+    explicit RK4 (``rk4`` True); the other is None and not compiled."""
+    if sdirk is not None:
         _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new)
-        return
-    stats[NFEV_MUSCLE] += 4 * substeps - 1
-    _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new)
+    if rk4 is not None:
+        stats[NFEV_MUSCLE] += 4 * substeps - 1
+        _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new)
+
+
+def step_loop_switches(monolithic: bool, n_segments: int, coupling) -> tuple:
+    """The switches of `run_step_loop` for the monolithic (else partitioned, under the packed
+    ``coupling``) technique on a chain of ``n_segments``.
+
+    Eight values, True or None, in four pairs of which one is True: (monolithic, one segment),
+    (monolithic, chain), (partitioned, one segment), (partitioned, chain); SDIRK2 or RK4
+    muscles; exchange at every stage or at the step ends. None is a type of its own to Numba,
+    so a branch ``if switch is not None`` on a None switch is removed when compiling, and a run
+    compiles only its own code (a fit one loop and one muscle solver, not all of them). The
+    muscle and exchange pairs matter only to the partitioned loop."""
+    def on(flag):
+        return True if flag else None
+
+    chain = n_segments > 1
+    sdirk = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
+    stage = not monolithic and int(coupling[ORDER]) == EVERY_STAGE
+    return (on(monolithic and not chain), on(monolithic and chain),
+            on(not monolithic and not chain), on(not monolithic and chain),
+            on(sdirk), on(not sdirk), on(stage), on(not stage))
+
+
+@njit(cache=True, error_model="numpy")
+def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned_chain,
+                  sdirk_muscles, rk4_muscles, stage_exchange, end_exchange, y0, h, n_steps,
+                  seg, joints, units, profiles, coupling, out, stats):
+    """Run the step loop that the switches (`step_loop_switches`) choose: `rk4_monolithic` or
+    `rk4_partitioned`, for one segment or a chain, and in the partitioned loop its muscle
+    solver and exchange. Only the chosen code is compiled. (A dispatcher passed as an argument
+    would choose as well, but Numba's disk cache misses such compilations in every new
+    process; an integer made literal compiles every branch once before it specialises.)"""
+    if monolithic_one is not None:
+        rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats)
+    if monolithic_chain is not None:
+        rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats, True)
+    if partitioned_one is not None:
+        rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
+                        False, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange)
+    if partitioned_chain is not None:
+        rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
+                        True, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange)
 
 
 def new_stats() -> np.ndarray:

@@ -154,18 +154,15 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     out = np.empty((n + 1, model.state_size))
     stats = fs.new_stats()
     if method == "monolithic":
-        kernel, extra, label = fs.rk4_monolithic, (), "monolithic"
+        label, exchange = "monolithic", np.zeros(fs.COUPLING_SIZE)  # unused
     else:
-        kernel, extra, label = fs.rk4_partitioned, (coupling.to_array(),), coupling.label()
+        label, exchange = coupling.label(), coupling.to_array()
         method = "partitioned"
-    if model.n_joints > 1:  # the general mass-matrix solve (fs.check_body_kind)
-        extra_after = (True,)
-    else:
-        extra_after = ()
+    switches = fs.step_loop_switches(method == "monolithic", model.n_joints, exchange)
     # A zero-step call compiles the loop (or loads it from the disk cache) outside the timing.
-    kernel(y0, float(step), 0, *packed, *extra, out, fs.new_stats(), *extra_after)
+    fs.run_step_loop(*switches, y0, float(step), 0, *packed, exchange, out, fs.new_stats())
     start = _time.perf_counter()
-    kernel(y0, float(step), n, *packed, *extra, out, stats, *extra_after)
+    fs.run_step_loop(*switches, y0, float(step), n, *packed, exchange, out, stats)
     wall = _time.perf_counter() - start
     done = int(stats[fs.STEPS])
     times = np.arange(done + 1) * step
