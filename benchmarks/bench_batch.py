@@ -1,6 +1,7 @@
 """Batch benchmarks of the Dask issue, measured in one run on local clusters.
 
 Run:  python benchmarks/bench_batch.py [--fits 8] [--samples 10000] [--skip fits,sweep]
+          [--write-docs]
 
 Prints, for a LocalCluster of 1 and of 2 worker processes (one thread each), started and
 warmed up (kernels loaded, one task run) before any timing:
@@ -16,6 +17,9 @@ warmed up (kernels loaded, one task run) before any timing:
    ``--workers 1`` and ``--workers 2`` (cluster start-up, automatic chunks, writing the
    outputs included), interleaved, minimum of 4 runs each (target: 2 workers ≥ 1.6× one on an
    idle machine), and a 10-sample sweep (in process: no cluster started).
+
+With ``--write-docs`` the results go into the ``batch-benchmark`` block of docs/batch.md
+(with the date and load).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -34,6 +39,11 @@ import torquesim as ts
 from torquesim.batch import fit_many, sweep
 from torquesim.batch.sweep import parse_vary, sample_matrix, simulate_chunk
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
+from docblocks import measured_on, write_blocks  # noqa: E402
+
+#: What each part measured, for docs/batch.md.
+RESULTS: dict[str, dict] = {}
 #: Interleaved repeats of each whole command; the minimum is reported.
 REPEATS = 4
 VARY = ["elbow_flexor.se_stiffness=normal(600,60)", "forearm_hand.dumbbell.mass=uniform(4,6)"]
@@ -81,6 +91,7 @@ def bench_fits(clients: dict, count: int) -> None:
         if len(walls) == 2:
             ratio = walls[1] / walls[2]
             print(f"   speed-up 2 vs 1 worker: {ratio:.2f}x (target ≥ 1.7: {ratio >= 1.7})")
+            RESULTS["fits"] = {"count": count, "walls": walls, "ratio": ratio}
 
 
 def bench_sweep(clients: dict, samples: int) -> None:
@@ -109,8 +120,12 @@ def bench_sweep(clients: dict, samples: int) -> None:
             t0 = time.perf_counter()
             client.submit(noop, pure=False).result()
             trips.append(time.perf_counter() - t0)
-        print(f"   empty task round trip: {statistics.median(trips) * 1e3:.1f} ms "
-              f"({statistics.median(trips) / in_process * 100:.2f} % of a chunk's work)")
+        trip = statistics.median(trips)
+        print(f"   empty task round trip: {trip * 1e3:.1f} ms "
+              f"({trip / in_process * 100:.2f} % of a chunk's work)")
+        RESULTS.setdefault("sweep", {"samples": samples, "in_process": in_process})[n] = {
+            "rate": rates[n], "ok": int((table.accuracy == "ok").sum()),
+            "overhead": overhead, "trip": trip}
     if len(rates) == 2:
         ratio = rates[2] / rates[1]
         print(f"   speed-up 2 vs 1 worker: {ratio:.2f}x (target ≥ 1.6: {ratio >= 1.6}); "
@@ -142,6 +157,41 @@ def bench_command(samples: int) -> None:
     ratio = best["1 worker"] / best["2 workers"]
     print(f"   speed-up 2 vs 1 worker, whole command: {ratio:.2f}x (target ≥ 1.6 on an idle "
           f"machine: {ratio >= 1.6})")
+    RESULTS["command"] = {"samples": samples, "best": best, "ratio": ratio}
+
+
+def docs_block(load: float) -> str:
+    """The measured figures as a table for docs/batch.md."""
+    lines = [f"Measured by `python benchmarks/bench_batch.py --write-docs` ({measured_on(load)};",
+             "local clusters of worker processes with one thread each, warmed up before "
+             "timing).", "", "| run | 1 worker | 2 workers | speed-up |", "|---|---|---|---|"]
+    fits = RESULTS.get("fits")
+    if fits:
+        lines.append(f"| {fits['count']} elbow fits (least squares, IMEX 5 ms) | "
+                     f"{fits['walls'][1]:.1f} s | {fits['walls'][2]:.1f} s | "
+                     f"**{fits['ratio']:.2f}×** |")
+    sw = RESULTS.get("sweep")
+    if sw and 1 in sw and 2 in sw:
+        lines.append(f"| sweep of {sw['samples']} curls (IMEX 5 ms, chunks of 1000) | "
+                     f"{sw[1]['rate']:.0f} simulations/s | {sw[2]['rate']:.0f}/s "
+                     f"({60 * sw[2]['rate']:.0f} per minute) | "
+                     f"**{sw[2]['rate'] / sw[1]['rate']:.2f}×** |")
+    cmd = RESULTS.get("command")
+    if cmd:
+        lines.append(f"| whole command `torquesim batch sweep --samples {cmd['samples']}` "
+                     f"(minimum of {REPEATS} interleaved runs) | {cmd['best']['1 worker']:.1f} s"
+                     f" | {cmd['best']['2 workers']:.1f} s | **{cmd['ratio']:.2f}×** |")
+    if sw and 2 in sw:
+        lines += ["", f"A chunk of 1000 takes {sw['in_process']:.2f} s in the client process; "
+                  f"on a worker it takes {sw[2]['overhead'] * 100:+.0f} % of that, and an "
+                  f"empty task's round trip is {sw[2]['trip'] * 1e3:.0f} ms "
+                  f"({sw[2]['trip'] / sw['in_process'] * 100:.1f} % of a chunk). "
+                  f"{sw[2]['ok']} of the {sw['samples']} samples are accurate at IMEX 5 ms; "
+                  "the others are marked `inaccurate` (estimated max error above 0.5°)."]
+    if cmd:
+        lines += ["", f"A 10-sample sweep runs in process (no cluster) in "
+                  f"{cmd['best']['10 samples, in process']:.1f} s."]
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
@@ -149,9 +199,12 @@ def main() -> None:
     parser.add_argument("--fits", type=int, default=8)
     parser.add_argument("--samples", type=int, default=10_000)
     parser.add_argument("--skip", default="", help="comma-separated: fits, sweep, command")
+    parser.add_argument("--write-docs", action="store_true",
+                        help="write the results into docs/batch.md")
     args = parser.parse_args()
     skip = set(args.skip.split(","))
-    print(f"cores: {os.cpu_count()}; load average at start: {os.getloadavg()[0]:.2f}")
+    load = os.getloadavg()[0]
+    print(f"cores: {os.cpu_count()}; load average at start: {load:.2f}")
     if "command" not in skip:
         bench_command(5000)
     clusters = {n: LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
@@ -169,6 +222,8 @@ def main() -> None:
             clients[n].close()
             clusters[n].close()
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
+    if args.write_docs:
+        write_blocks("docs/batch.md", {"batch-benchmark": docs_block(load)})
 
 
 if __name__ == "__main__":

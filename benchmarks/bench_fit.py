@@ -1,8 +1,12 @@
 """Fit benchmarks of the chain-fitting issue, all measured in one run.
 
-Run:  python benchmarks/bench_fit.py [--skip curl,arm,effort] [--no-global]
+Run:  python benchmarks/bench_fit.py [--skip curl,arm,effort] [--no-global] [--write-docs]
 
-Prints, on this machine (compilation is done before any timing):
+Prints, on this machine (compilation is done before any timing). Every fit is what
+``torquesim fit`` runs: the search, then the integration-error control (`fit_to_accuracy`:
+the fit continues at half the step while its own RMS and the reference re-simulation's
+disagree). With ``--write-docs`` the results go into the ``fit-benchmark`` block of
+docs/fitting.md (with the date and load).
 
 1. ``builtin:curl`` (elbow, IMEX 5 ms, seed 1): the default least-squares search and, in the
    same run, the differential-evolution search (``--search global``, 300 generations + 4000
@@ -21,39 +25,68 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numba
 import numpy as np
 
 import torquesim as ts
-from torquesim.fitting import FitProblem, SearchSettings, Target, load_target, run_fit
+from torquesim.fitting import FitProblem, SearchSettings, Target, load_target
+from torquesim.fitting.fit import fit_to_accuracy
 from torquesim.model.activation import ActivationProfile, Ramp
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
+from docblocks import measured_on, write_blocks  # noqa: E402
+
+#: Table rows for docs/fitting.md: (case, fit RMS, reference RMS, reference max,
+#: simulations, final step ms, wall s).
+ROWS: list[tuple] = []
 
 
 def timed_fit(problem: FitProblem, settings: SearchSettings):
-    """Fit (after compiling), re-simulate with the reference: outcome, wall s, errors."""
+    """Fit as `torquesim fit` does (after compiling), re-simulate with the reference:
+    problem at the final step, outcome, wall s, reference errors, the fit's own RMS."""
     problem.evaluate(np.array([problem.space.upper]))  # compile / load from cache first
     problem.simulations = problem.failed_simulations = 0
     start = time.perf_counter()
-    outcome = run_fit(problem, settings)
+    problem, outcome, refinements = fit_to_accuracy(problem, settings)
     wall = time.perf_counter() - start
     reference = ts.simulate(problem.model_for(outcome.x), "reference", output_step=0.005)
-    return outcome, wall, problem.errors_deg(reference)
+    own = {j: v["rms_error_deg"] for j, v in refinements[-1]["joints"].items()}
+    return problem, outcome, wall, problem.errors_deg(reference), own
+
+
+def row(case: str, problem, outcome, wall: float, errors: dict, own: dict) -> None:
+    joints = list(errors)
+
+    def per_joint(values) -> str:
+        if len(joints) == 1:
+            return f"{values[joints[0]]:.3f}°"
+        return ", ".join(f"{j} {values[j]:.3f}°" for j in joints)
+
+    ROWS.append((case, per_joint(own), per_joint({j: e[0] for j, e in errors.items()}),
+                 per_joint({j: e[1] for j, e in errors.items()}),
+                 outcome.simulations, problem.step * 1e3, wall))
 
 
 def curl(run_global: bool) -> None:
     model = ts.load_model("builtin:elbow-curl")
     target = load_target("builtin:curl", model)
     print("1. builtin:curl (elbow, IMEX 5 ms, seed 1)")
-    lsq, wall, errors = timed_fit(FitProblem(target, base_model=model), SearchSettings())
+    problem, lsq, wall, errors, own = timed_fit(FitProblem(target, base_model=model),
+                                                SearchSettings())
+    row("`builtin:curl`, least squares (default)", problem, lsq, wall, errors, own)
     rms, worst = errors["elbow"]
     print(f"   least squares      {rms:.3f} deg RMS, {worst:.3f} deg max (reference); "
           f"{lsq.simulations} simulations; {wall:.1f} s")
     if run_global:
-        de, dwall, derrors = timed_fit(FitProblem(target, base_model=model),
-                                       SearchSettings(search="global"))
+        problem, de, dwall, derrors, down = timed_fit(FitProblem(target, base_model=model),
+                                                      SearchSettings(search="global"))
+        row("`builtin:curl`, differential evolution (`--search global`)", problem, de, dwall,
+            derrors, down)
         drms, dworst = derrors["elbow"]
         print(f"   differential evol. {drms:.3f} deg RMS, {dworst:.3f} deg max (reference); "
               f"{de.simulations} simulations; {dwall:.1f} s")
@@ -67,11 +100,18 @@ def arm() -> None:
     model = ts.load_model("builtin:arm-raise")
     target = load_target("builtin:arm-raise", model)
     print("2. builtin:arm-raise (shoulder and elbow, 36 parameters, IMEX 5 ms)")
-    outcome, wall, errors = timed_fit(FitProblem(target, base_model=model), SearchSettings())
+    problem, outcome, wall, errors, own = timed_fit(FitProblem(target, base_model=model),
+                                                    SearchSettings())
+    row("`builtin:arm-raise` (36 parameters), least squares", problem, outcome, wall, errors,
+        own)
     for joint, (rms, worst) in errors.items():
         print(f"   {joint:<9} {rms:.3f} deg RMS, {worst:.3f} deg max (reference)")
-    print(f"   {outcome.simulations} simulations; {wall:.1f} s; target ≤ 1.0 deg per joint "
-          f"in ≤ 60 s: {all(e[0] <= 1.0 for e in errors.values()) and wall <= 60}")
+    print(f"   {outcome.simulations} simulations; final step {problem.step * 1e3:g} ms; "
+          f"{wall:.1f} s; target ≤ 1.0 deg per joint in ≤ 60 s: "
+          f"{all(e[0] <= 1.0 for e in errors.values()) and wall <= 60}")
+
+
+EFFORT: list[tuple] = []
 
 
 def effort() -> None:
@@ -86,13 +126,34 @@ def effort() -> None:
     plain = None
     for weight in (0.0, 1.0, 10.0):
         problem = FitProblem(target, base_model=generating, weight_effort=weight)
-        outcome, wall, errors = timed_fit(problem, SearchSettings())
+        problem, outcome, wall, errors, _own = timed_fit(problem, SearchSettings())
         rms = errors["elbow"][0]
         plain = rms if plain is None else plain
         mean = problem.mean_activations(outcome.x)["elbow_extensor"]
+        EFFORT.append((weight, rms, mean))
         print(f"   weight {weight:>4g}: extensor mean activation {mean:.3f} (generating 0.050, "
               f"|Δ| ≤ 0.05: {abs(mean - 0.05) <= 0.05}); RMS {rms:.3f} deg (within 0.2 of "
               f"unweighted: {rms <= plain + 0.2}); {wall:.1f} s")
+
+
+def docs_block(load: float) -> str:
+    lines = [f"Measured by `python benchmarks/bench_fit.py --write-docs` ({measured_on(load)};",
+             f"{numba.config.NUMBA_NUM_THREADS} Numba threads, compilation excluded). RMS and "
+             "max are the fitted model re-simulated",
+             "with the reference solver; \"fit RMS\" is the fit's own at its final step.", "",
+             "| fit | fit RMS | RMS with the reference | max | simulations | final step | "
+             "wall |", "|---|---|---|---|---|---|---|"]
+    for case, own, rms, worst, sims, step, wall in ROWS:
+        lines.append(f"| {case} | {own} | **{rms}** | {worst} | {sims} | {step:g} ms | "
+                     f"**{wall:.1f} s** |")
+    if EFFORT:
+        lines += ["", "Effort, on a curl made by the elbow model with the extensor at 0.05 "
+                  "throughout (the antagonist's", "mean activation should stay near 0.05 "
+                  "while the angle RMS stays within 0.2° of the unweighted fit):", "",
+                  "| `--weight-effort` | RMS with the reference | extensor mean activation |",
+                  "|---|---|---|"]
+        lines += [f"| {w:g} | {rms:.3f}° | {mean:.3f} |" for w, rms, mean in EFFORT]
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
@@ -100,6 +161,8 @@ def main() -> None:
     parser.add_argument("--skip", default="", help="comma-separated: curl, arm, effort")
     parser.add_argument("--no-global", action="store_true",
                         help="skip the differential-evolution comparison (~1 min)")
+    parser.add_argument("--write-docs", action="store_true",
+                        help="write the results into docs/fitting.md")
     args = parser.parse_args()
     skip = set(args.skip.split(","))
     load = os.getloadavg()[0]
@@ -112,6 +175,8 @@ def main() -> None:
     if "effort" not in skip:
         effort()
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
+    if args.write_docs:
+        write_blocks("docs/fitting.md", {"fit-benchmark": docs_block(load)})
 
 
 if __name__ == "__main__":

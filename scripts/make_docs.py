@@ -2,7 +2,8 @@
 
     python scripts/make_docs.py            # the study on the default curl and its sensitivity
                                            # to the SE stiffness (~15 min on 2 cores)
-    python scripts/make_docs.py --check    # only check that docs/study.md holds the blocks
+    python scripts/make_docs.py --check    # only check that every page holds its generated
+                                           # blocks (scripts/docblocks.py)
 
 Runs ``torquesim compare`` on the default curl into a temporary folder, copies its figures to
 ``docs/figures/`` and rewrites the blocks of ``docs/study.md`` between
@@ -17,20 +18,17 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import re
 import shutil
 import sys
 import tempfile
 from datetime import UTC, datetime
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-PAGE = ROOT / "docs" / "study.md"
+from docblocks import ROOT, missing_blocks, write_blocks  # noqa: E402  (scripts/)
+
 FIGURES = ("convergence.png", "work_precision.png", "time_constants.png")
 #: The sensitivity figure: ``compare --vary`` of the SE stiffness.
 SENSITIVITY = ("--vary", "se_stiffness=200,600,3000")
-BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)"
-                   r"(<!-- end generated -->)", re.S)
 
 
 def _rows(path: Path) -> list[dict]:
@@ -126,13 +124,11 @@ def checks_block() -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
-                        help="only check that docs/study.md has every generated block")
+                        help="only check that every docs page has its generated blocks")
     args = parser.parse_args()
-    text = PAGE.read_text(encoding="utf-8")
-    found = {m.group("name") for m in BLOCK.finditer(text)}
-    wanted = {"study-verdict", "study-limits", "default-checks"}
-    if found != wanted:
-        sys.exit(f"docs/study.md: generated blocks {sorted(found)}; expected {sorted(wanted)}")
+    problems = missing_blocks()
+    if problems:
+        sys.exit("\n".join(problems))
     if args.check:
         return
     from torquesim.cli import main as torquesim
@@ -153,10 +149,8 @@ def main() -> None:
         if code:
             sys.exit(f"torquesim compare --vary failed (exit {code})")
         shutil.copyfile(vary / "sensitivity.png", ROOT / "docs" / "figures" / "sensitivity.png")
-    PAGE.write_text(BLOCK.sub(lambda m: m.group(1) + blocks[m.group("name")] + m.group(4),
-                              text), encoding="utf-8")
-    print(f"rewrote {PAGE.relative_to(ROOT)} ({', '.join(sorted(blocks))}) and "
-          f"docs/figures/{{{','.join((*FIGURES, 'sensitivity.png'))}}}")
+    write_blocks("docs/study.md", blocks)
+    print(f"wrote docs/figures/{{{','.join((*FIGURES, 'sensitivity.png'))}}}")
 
 
 if __name__ == "__main__":

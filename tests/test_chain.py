@@ -17,7 +17,7 @@ from torquesim.model.body import (
 from torquesim.solvers.rates import chain_derivative
 from torquesim.study import smooth_chain_case
 
-from .conftest import chain_energy, measured_order
+from .conftest import chain_energy
 
 PRESETS = ("elbow-curl", "knee-extension", "arm-raise")
 
@@ -219,16 +219,6 @@ def test_smooth_chain_case_is_smooth():
         assert np.all(np.abs(w) < unit.parameters.max_velocity)
         assert np.all(c[f"torque_{unit.name}"] > 1.0)
     assert np.ptp(r.q, axis=0).min() > math.radians(5)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("method, coupling, steps, low, high", [
-    ("monolithic", None, [1e-3, 5e-4, 2.5e-4, 1.25e-4], 3.5, 4.5),
-    ("partitioned", None, [5e-4, 2.5e-4, 1.25e-4, 6.25e-5], 0.8, 1.2),
-    ("imex", None, [1e-3, 5e-4, 2.5e-4, 1.25e-4], 1.8, 2.2),
-])
-def test_orders_on_the_smooth_chain_case(method, coupling, steps, low, high):
-    assert low < measured_order(smooth_chain_case(), method, coupling, steps) < high
 
 
 _FROZEN = np.load(__import__("pathlib").Path(__file__).parent / "data"

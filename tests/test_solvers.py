@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 import torquesim as ts
-from torquesim.study import smooth_case
 
-from .conftest import ce_power, chain_energy, max_angle_error, measured_order
+from .conftest import ce_power, chain_energy, max_angle_error
 
 # MODEL.md §3: converged default curl, θ (deg) at t = 0, 0.5, ..., 3.0 s.
 GOLDEN_DEG = [10.0000, 37.5343, 105.9319, 137.8826, 109.2625, 38.6858, 11.8909]
@@ -93,24 +92,6 @@ def test_every_stage_exchange_is_monolithic_to_round_off(model):
     assert np.max(np.abs(mono.states - stage.states)) < 1e-12
 
 
-def _order(method, coupling, steps):
-    return measured_order(smooth_case(), method, coupling, steps)
-
-
-@pytest.mark.slow
-def test_monolithic_order_four_on_smooth_case():
-    slope = _order("monolithic", None, [2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4])
-    assert 3.5 < slope < 4.5
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("coupling, low, high", [
-    (ts.Coupling(), 0.8, 1.2), (ts.Coupling(order="body-first"), 0.8, 1.2),
-    (ts.Coupling(predictor="linear"), 1.8, 2.2), (ts.Coupling(iterations=3), 1.8, 2.2)])
-def test_partitioned_orders_on_smooth_case(coupling, low, high):
-    assert low < _order("partitioned", coupling, [1.25e-3, 6.25e-4, 3.125e-4, 1.5625e-4]) < high
-
-
 def test_stability_guard_flags_large_steps(model, reference):
     bad = ts.simulate(model, "monolithic", 1e-3)
     assert bad.stability.exceeded
@@ -172,16 +153,6 @@ def test_imex_keeps_the_static_equilibrium():
 def test_imex_needs_an_implicit_muscle_solver(model):
     with pytest.raises(ts.ModelError, match="muscle_solver"):
         ts.simulate(model, "imex", 1e-3, coupling=ts.Coupling())
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("coupling, low, high", [
-    (ts.Coupling(order="body-first", predictor="linear", muscle_solver="sdirk2"), 1.8, 2.2),
-    (ts.Coupling(muscle_solver="sdirk2"), 0.8, 1.2)])
-def test_imex_orders_on_smooth_case(coupling, low, high):
-    """IMEX is second order (SDIRK2 muscles, linear torque predictor); with a zero-order hold
-    the exchange caps it at first order, as for explicit partitioned."""
-    assert low < _order("partitioned", coupling, [2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4]) < high
 
 
 def test_ce_damping_bounds_the_stiffness_so_rk4_is_stable_at_1ms():

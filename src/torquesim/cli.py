@@ -10,6 +10,7 @@ from pathlib import Path
 import click
 
 from .errors import ModelError, SimulationError
+from .solvers.techniques import FIT_METHODS, METHODS, TECHNIQUES
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
@@ -64,7 +65,7 @@ def cli():
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
               help="Model: a TOML file or a preset builtin:elbow-curl|knee-extension|arm-raise "
                    "(see 'torquesim model').")
-@click.option("--method", type=click.Choice(["monolithic", "partitioned", "imex", "reference"]),
+@click.option("--method", type=click.Choice(METHODS),
               default="monolithic", show_default=True,
               help="monolithic: one RK4 on all equations; partitioned: each part its own RK4, "
                    "zero-order hold exchange; imex: body explicit RK4, muscles implicit "
@@ -347,7 +348,7 @@ def compare(model_path, steps, repeats, out_dir, vary, quiet):
                 ("≥ " if r["stability_limit_s"] * 1e3 >= largest else "")
                 + f"{r['stability_limit_s'] * 1e3:g} ms" if r["stability_limit_s"]
                 else f"< {smallest:g} ms") for r in picks if r["technique"] in
-                {"monolithic", "partitioned", "partitioned[linear]", "imex"})
+                {t.name for t in TECHNIQUES if t.headline})
             winners = ", ".join(f"{t:g}°: {picks[0][f'cheapest_{t:g}deg'] or 'none'}"
                                 for t in (1.0, 0.1, 0.01, 0.001))
             click.echo(f"{name} = {value:g}: stability limits {limits}; cheapest {winners}")
@@ -395,7 +396,7 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
 
 #: The fit technique and search options, shared by ``fit`` and ``batch fit``.
 _SEARCH_OPTIONS = (
-    click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
+    click.option("--method", type=click.Choice(FIT_METHODS),
                  default="imex", show_default=True,
                  help="Technique inside the fit. Explicit RK4 (monolithic, partitioned) needs "
                       "a step ≤ ~0.25 ms on the default model; runs that break its stability "
@@ -704,7 +705,7 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
               help="Random seed of the samples (drawn in the client: the same table whatever "
                    "the workers).")
 @click.option("--sobol", is_flag=True, help="Scrambled Sobol' points instead of random.")
-@click.option("--method", type=click.Choice(["imex", "monolithic", "partitioned"]),
+@click.option("--method", type=click.Choice(FIT_METHODS),
               default="imex", show_default=True,
               help="Technique of every sample (as in `simulate`).")
 @click.option("--step", type=TIME, default="5ms", show_default=True,

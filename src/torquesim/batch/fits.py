@@ -190,8 +190,8 @@ def _check_settings(jobs: list[FitJob], settings: dict) -> None:
     """Settings that would fail every fit are the command's error, not each row's: the
     search, the method, the step and every distinct model file."""
     from ..fitting import SearchSettings
-    from ..fitting.problem import FIT_METHODS
     from ..io.model_file import load_model
+    from ..solvers.techniques import FIT_METHODS
 
     SearchSettings(search=settings["search"], seed=settings["seed"],
                    starts=settings["starts"], iterations=settings["iterations"])

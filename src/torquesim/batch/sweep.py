@@ -26,12 +26,12 @@ from ..errors import ModelError, SimulationError, check_range
 from ..model.chain import ChainModel, as_chain
 from ..model.torque_generator import TorqueGeneratorUnit
 from ..solvers.simulate import DEFAULT_TOLERANCE
+from ..solvers.techniques import FIT_METHODS
 
 DISTRIBUTIONS = ("uniform", "normal", "lognormal", "grid")
 #: Points of each joint's angle history kept per sample (for the percentile bands).
 HISTORY_POINTS = 101
 DEFAULT_CHUNK = 1000
-SWEEP_METHODS = ("imex", "monolithic", "partitioned")
 
 
 @dataclass(frozen=True)
@@ -276,8 +276,8 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     from ..solvers.simulate import step_count
     from .engine import check_scheduler, connect, workers_of
 
-    if method not in SWEEP_METHODS:
-        raise ModelError("--method", f"{method!r}; allowed: {', '.join(SWEEP_METHODS)}")
+    if method not in FIT_METHODS:
+        raise ModelError("--method", f"{method!r}; allowed: {', '.join(FIT_METHODS)}")
     _whole_number("--samples", samples, 1, 10_000_000)
     if chunk is not None:
         _whole_number("--chunk", chunk, 1, 1_000_000)

@@ -13,11 +13,11 @@ from ..model.chain import ChainModel, as_chain
 from ..model.presets import preset
 from ..solvers import fixed_step as fs
 from ..solvers.coupling import IMEX, Coupling
+from ..solvers.techniques import FIT_METHODS
 from . import objective as obj
 from .parameters import ParameterSpace, with_ramps
 from .target import Target
 
-FIT_METHODS = ("imex", "monolithic", "partitioned")
 DEFAULT_METHOD = "imex"
 #: Default fit step, s: IMEX is stable at any step; 5 ms keeps it within ~0.3° of the
 #: reference on the default curl.

@@ -1,8 +1,30 @@
-"""Solution techniques: monolithic and partitioned RK4, IMEX, and SciPy's adaptive solvers."""
+"""Solution techniques: monolithic and partitioned RK4, IMEX, and SciPy's adaptive solvers.
 
-from .coupling import Coupling
-from .result import RunCost, SimulationResult, StabilityReport, column_units
-from .simulate import METHODS, simulate, step_count
+Names are imported on first use (PEP 562): the technique registry (`techniques`) can be read
+without loading Numba.
+"""
 
-__all__ = ["METHODS", "Coupling", "RunCost", "SimulationResult", "StabilityReport",
-           "column_units", "simulate", "step_count"]
+from importlib import import_module
+
+_EXPORTS = {
+    "Coupling": "coupling", "RunCost": "result", "SimulationResult": "result",
+    "StabilityReport": "result", "column_units": "result", "simulate": "simulate",
+    "step_count": "simulate", "METHODS": "techniques", "TECHNIQUES": "techniques",
+    "Technique": "techniques",
+}
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted([*globals(), *_EXPORTS])
+
+
+__all__ = ["METHODS", "TECHNIQUES", "Coupling", "RunCost", "SimulationResult", "StabilityReport",
+           "Technique", "column_units", "simulate", "step_count"]

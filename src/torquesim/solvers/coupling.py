@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ModelError, check_range
-from . import fixed_step as fs
+from . import coupling_layout as fs
 
 ORDERS = {"jacobi": fs.JACOBI, "body-first": fs.BODY_FIRST, "muscles-first": fs.MUSCLES_FIRST,
           "every-stage": fs.EVERY_STAGE}

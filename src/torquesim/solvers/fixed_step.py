@@ -32,6 +32,23 @@ from ..model.body import (
     single_segment_acceleration,
 )
 from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
+from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
+    BODY_FIRST,
+    COUPLING_SIZE,
+    EVERY_STAGE,
+    EXPLICIT_RK4,
+    HOLD,
+    ITERATIONS,
+    JACOBI,
+    LINEAR,
+    MUSCLE_SOLVER,
+    MUSCLE_SUBSTEPS,
+    MUSCLES_FIRST,
+    ORDER,
+    PREDICTOR,
+    SDIRK2,
+    TOLERANCE,
+)
 from .rates import (
     flat_arrays,
     joint_muscle_torques,
@@ -58,12 +75,6 @@ OK, NON_FINITE, DIVERGED = 0, 1, 2
 #: Real-axis stability limit of classical RK4: |λ|·h ≤ 2.785 (the boundary of its region).
 RK4_STABILITY_LIMIT = 2.785293563405282
 
-# Coupling scheme array layout (see torquesim.solvers.coupling.Coupling).
-ORDER, PREDICTOR, MUSCLE_SUBSTEPS, ITERATIONS, TOLERANCE, MUSCLE_SOLVER = range(6)
-COUPLING_SIZE = 6
-JACOBI, BODY_FIRST, MUSCLES_FIRST, EVERY_STAGE = 0, 1, 2, 3
-HOLD, LINEAR = 0, 1
-EXPLICIT_RK4, SDIRK2 = 0, 1
 #: Diagonal coefficient γ = 1 − 1/√2 of the L-stable two-stage SDIRK method of order 2.
 SDIRK_GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
 #: Rows of the scratch array of the partitioned loop (each row as long as the state).

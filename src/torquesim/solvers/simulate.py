@@ -15,12 +15,9 @@ from . import fixed_step as fs
 from .coupling import IMEX, Coupling
 from .rates import chain_derivative
 from .result import RunCost, SimulationResult, StabilityReport
+from .techniques import FIXED_STEP_METHODS, METHODS, SCIPY_METHODS, nominal_order
 
-FIXED_STEP_METHODS = ("monolithic", "partitioned", "imex")
-#: SciPy solvers (``scipy.integrate`` classes) usable on the whole system (``scipy:NAME``);
-#: ``reference`` is Radau. SciPy is imported only when one is used (start-up time).
-SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
-METHODS = (*FIXED_STEP_METHODS, "reference")
+# SciPy is imported only when a SciPy method is used (start-up time).
 DEFAULT_STEP = 1.0e-4
 REFERENCE_RTOL = 1.0e-10
 REFERENCE_ATOL = 1.0e-12
@@ -279,16 +276,6 @@ def _with_advice(result: SimulationResult, safe: float | None) -> SimulationResu
                               math.isinf(stability.limit))
         message = f"{head}; {advice}"
     return replace(result, stability=stability, message=message)
-
-
-def nominal_order(method: str, coupling: Coupling) -> int:
-    """Global order of accuracy of a fixed-step technique on smooth problems (measured in the
-    tests): monolithic RK4 4; partitioned exchange with a zero-order hold and one sweep 1;
-    linear extrapolation or iterated exchange 2; SDIRK2 muscles at most 2."""
-    if method == "monolithic" or coupling.order == "every-stage":
-        return 4
-    order = 2 if (coupling.predictor == "linear" or coupling.iterations > 1) else 1
-    return min(order, 2) if coupling.implicit_muscles else order
 
 
 def _doubling_estimate(result, model, packed, y0, method, coupling, p) -> float | None:

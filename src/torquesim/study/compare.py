@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from fractions import Fraction
 
 import numpy as np
@@ -17,9 +16,9 @@ from scipy.stats import linregress
 
 from ..errors import ModelError
 from ..model.chain import ChainModel, as_chain
-from ..solvers import Coupling, simulate
-from ..solvers.coupling import IMEX
+from ..solvers import simulate
 from ..solvers.simulate import step_count
+from ..solvers.techniques import Technique, study_techniques
 
 DEFAULT_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.2e-3, 0.1e-3, 0.05e-3)
 DEFAULT_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
@@ -58,35 +57,6 @@ FIXED_STEP_WORK = (("step.monolithic", lambda r: r["steps"] * (r["method"] == "m
                    ("newton", lambda r: r["newton_iterations"]))
 ADAPTIVE_WORK = (("step", lambda r: r["steps"]), ("call", lambda r: r["rhs_body"]),
                  ("lu", lambda r: r["lu_decompositions"]))
-
-
-@dataclass(frozen=True)
-class Technique:
-    """One solution technique of the study: a method and, for partitioned, its coupling."""
-
-    name: str
-    method: str
-    coupling: Coupling | None = None
-
-    @property
-    def adaptive(self) -> bool:
-        return self.method.startswith("scipy:")
-
-
-def default_techniques() -> tuple[Technique, ...]:
-    """The abstract's two techniques, the partitioned variants, IMEX (body explicit RK4,
-    muscles implicit SDIRK2) and two adaptive solvers."""
-    return (
-        Technique("monolithic", "monolithic"),
-        Technique("partitioned", "partitioned", Coupling()),
-        Technique("partitioned[body-first]", "partitioned", Coupling(order="body-first")),
-        Technique("partitioned[linear]", "partitioned", Coupling(predictor="linear")),
-        Technique("partitioned[m=4]", "partitioned", Coupling(muscle_substeps=4)),
-        Technique("partitioned[iter=3]", "partitioned", Coupling(iterations=3)),
-        Technique("imex", "imex", IMEX),
-        Technique("DOP853", "scipy:DOP853"),
-        Technique("Radau", "scipy:Radau"),
-    )
 
 
 def joint_error_columns(model: ChainModel) -> tuple[str, ...]:
@@ -147,7 +117,7 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
     called after each run."""
     model = as_chain(model)
     columns = COLUMNS + joint_error_columns(model)
-    techniques = default_techniques() if techniques is None else techniques
+    techniques = study_techniques() if techniques is None else techniques
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ModelError("repeats", f"must be a whole number ≥ 1, got {repeats!r}")
     for h in steps:

@@ -17,7 +17,6 @@ from .compare import (
     DEFAULT_REPEATS,
     DEFAULT_TOLERANCES,
     VERDICT_COLUMNS,
-    Technique,
     calibrate,
     observed_order,
     run_study,
@@ -38,16 +37,10 @@ SMOOTH_STEPS = (2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4)
 def smooth_case_orders(progress=None, chain: bool = False) -> dict[str, float]:
     """Observed orders of the fixed-step techniques on `smooth_case` (the elbow) or,
     with ``chain``, `smooth_chain_case` (shoulder and elbow)."""
-    from ..solvers import Coupling
-    from ..solvers.coupling import IMEX
+    from ..solvers.techniques import study_techniques
 
     model, y0 = smooth_chain_case() if chain else smooth_case()
-    techniques = (Technique("monolithic", "monolithic"),
-                  Technique("partitioned", "partitioned", Coupling()),
-                  Technique("partitioned[body-first]", "partitioned", Coupling(order="body-first")),
-                  Technique("partitioned[linear]", "partitioned", Coupling(predictor="linear")),
-                  Technique("partitioned[iter=3]", "partitioned", Coupling(iterations=3)),
-                  Technique("imex", "imex", IMEX))
+    techniques = tuple(t for t in study_techniques() if not t.adaptive)
     rows, _ = run_study(model, steps=SMOOTH_STEPS, tolerances=(), techniques=techniques,
                         repeats=1, initial_state=y0, progress=progress)
     return {t.name: observed_order(rows, t.name) for t in techniques}

@@ -1,0 +1,59 @@
+"""Generated blocks of the documentation: the text between ``<!-- generated: NAME -->`` and
+``<!-- end generated -->`` in a docs page is written by a script of the repository (the
+study by ``scripts/make_docs.py``, the validation figures by ``scripts/validation_figures.py``,
+the fit and batch measurements by ``benchmarks/bench_fit.py --write-docs`` and
+``benchmarks/bench_batch.py --write-docs``), never typed by hand."""
+
+from __future__ import annotations
+
+import os
+import re
+from datetime import UTC, datetime
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)"
+                   r"(<!-- end generated -->)", re.S)
+#: Every generated block, by page (checked by ``scripts/make_docs.py --check`` in CI).
+PAGES = {
+    "docs/study.md": {"study-verdict", "study-limits", "default-checks"},
+    "docs/validation.md": {"validation-figures"},
+    "docs/fitting.md": {"fit-benchmark"},
+    "docs/batch.md": {"batch-benchmark"},
+}
+
+
+def blocks_in(page: str) -> set[str]:
+    """Names of the generated blocks in ``page`` (a path relative to the repository)."""
+    text = (ROOT / page).read_text(encoding="utf-8")
+    return {m.group("name") for m in BLOCK.finditer(text)}
+
+
+def missing_blocks() -> list[str]:
+    """Pages whose generated blocks differ from `PAGES`, one message each."""
+    problems = []
+    for page, wanted in PAGES.items():
+        found = blocks_in(page)
+        if found != wanted:
+            problems.append(f"{page}: generated blocks {sorted(found)}; expected "
+                            f"{sorted(wanted)}")
+    return problems
+
+
+def write_blocks(page: str, blocks: dict[str, str]) -> None:
+    """Replace the bodies of the named generated blocks of ``page``."""
+    path = ROOT / page
+    text = path.read_text(encoding="utf-8")
+    missing = set(blocks) - blocks_in(page)
+    if missing:
+        raise SystemExit(f"{page}: no generated block {sorted(missing)}")
+    text = BLOCK.sub(lambda m: m.group(1) + blocks.get(m.group("name"), m.group("body"))
+                     + m.group(4), text)
+    path.write_text(text, encoding="utf-8")
+    print(f"rewrote {page} ({', '.join(sorted(blocks))})")
+
+
+def measured_on(load_start: float) -> str:
+    """'2026-12-01, 2 cores, load 0.8 → 1.1': when and under what load a block was measured."""
+    return (f"{datetime.now(UTC).date()}, {os.cpu_count()} cores, load average "
+            f"{load_start:.2f} → {os.getloadavg()[0]:.2f}")

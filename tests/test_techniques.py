@@ -1,0 +1,74 @@
+"""The technique registry: every registered fixed-step technique is tested by being
+registered. Its order of accuracy is measured on the smooth cases (the elbow and the
+shoulder–elbow chain) against the order it declares, and the registry agrees with the
+command line, `simulate` and the coupling rule."""
+
+import pytest
+
+import torquesim as ts
+from torquesim.solvers.techniques import (
+    FIT_METHODS,
+    METHODS,
+    TECHNIQUES,
+    coupling_order,
+    fixed_step_techniques,
+    nominal_order,
+    study_techniques,
+)
+from torquesim.study import smooth_case, smooth_chain_case
+
+from .conftest import measured_order
+
+#: Steps of the measurement, coarse for 4th order (finer ones reach the reference's
+#: round-off), finer for the low orders (to be in the asymptotic range).
+STEPS = {("elbow", True): [2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4],
+         ("elbow", False): [1.25e-3, 6.25e-4, 3.125e-4, 1.5625e-4],
+         ("chain", True): [1e-3, 5e-4, 2.5e-4, 1.25e-4],
+         ("chain", False): [5e-4, 2.5e-4, 1.25e-4, 6.25e-5]}
+CASES = {"elbow": smooth_case, "chain": smooth_chain_case}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize("technique", fixed_step_techniques(), ids=lambda t: t.name)
+def test_measured_order_is_the_declared_order(technique, case):
+    high_order = technique.order >= 4
+    slope = measured_order(CASES[case](), technique.method, technique.coupling,
+                           STEPS[case, high_order])
+    band = 0.5 if high_order else 0.2
+    assert technique.order - band < slope < technique.order + band, slope
+
+
+def test_the_registry_is_consistent():
+    names = [t.name for t in TECHNIQUES]
+    assert len(set(names)) == len(names)
+    for t in fixed_step_techniques():
+        assert t.method in METHODS
+        if t.method == "partitioned":
+            assert t.coupling.label() == t.name  # the name a run reports is the registry's
+            assert coupling_order(t.coupling) == t.order
+        assert nominal_order(t.method, t.coupling) == t.order
+        assert (t.implicit == "muscles") == bool(t.coupling and t.coupling.implicit_muscles)
+    assert set(FIT_METHODS) <= set(METHODS)
+    assert {"monolithic", "partitioned", "imex"} <= {t.name for t in study_techniques()}
+
+
+def test_the_command_line_offers_the_registered_methods():
+    from torquesim.cli import cli
+
+    def choices(command, option="--method"):
+        params = cli.commands[command].params if " " not in command else \
+            cli.commands[command.split()[0]].commands[command.split()[1]].params
+        return tuple(next(p for p in params if option in p.opts).type.choices)
+
+    assert choices("simulate") == METHODS
+    assert choices("fit") == FIT_METHODS
+    assert choices("batch sweep") == FIT_METHODS
+
+
+def test_every_registered_technique_runs_under_its_name():
+    model = ts.default_model().replace(duration=0.05)
+    for t in fixed_step_techniques():
+        run = ts.simulate(model, t.method, 5e-4, coupling=t.coupling, tolerance=None,
+                          check=False)
+        assert run.method == t.name
