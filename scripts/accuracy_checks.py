@@ -18,7 +18,7 @@ import os
 import time
 
 import torquesim as ts
-from torquesim.solvers.simulate import DEFAULT_TOLERANCE
+from torquesim.solvers.simulation import DEFAULT_TOLERANCE
 from torquesim.study.checks import check_study
 
 

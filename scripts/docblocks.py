@@ -20,7 +20,33 @@ PAGES = {
     "docs/validation.md": {"validation-figures"},
     "docs/fitting.md": {"fit-benchmark"},
     "docs/batch.md": {"batch-benchmark"},
+    "docs/concepts.md": {"techniques"},
 }
+
+
+def techniques_block() -> str:
+    """The technique registry (`torquesim.solvers.techniques.TECHNIQUES`) as a table: cheap,
+    so ``make_docs.py --check`` also checks that the page shows the registry as it is."""
+    from torquesim.solvers.techniques import TECHNIQUES
+
+    lines = ["| technique | `--method` | how the parts are integrated | order | implicit | "
+             "in the study |", "|---|---|---|---|---|---|"]
+    for t in TECHNIQUES:
+        order = "adaptive" if t.order is None else str(t.order)
+        lines.append(f"| `{t.name}` | `{t.method}` | {t.parts} | {order} | {t.implicit} | "
+                     f"{'yes' if t.in_study else 'no'} |")
+    return ("Every technique torquesim knows, from its registry "
+            "(`torquesim.solvers.techniques`; the order is the declared one, which the tests "
+            "measure on two smooth cases):\n\n" + "\n".join(lines) + "\n")
+
+
+def current_block(page: str, name: str) -> str:
+    """The body of generated block ``name`` of ``page`` as it stands."""
+    text = (ROOT / page).read_text(encoding="utf-8")
+    for m in BLOCK.finditer(text):
+        if m.group("name") == name:
+            return m.group("body")
+    raise KeyError(name)
 
 
 def blocks_in(page: str) -> set[str]:

@@ -24,7 +24,13 @@ import tempfile
 from datetime import UTC, datetime
 from pathlib import Path
 
-from docblocks import ROOT, missing_blocks, write_blocks  # noqa: E402  (scripts/)
+from docblocks import (  # noqa: E402  (scripts/)
+    ROOT,
+    current_block,
+    missing_blocks,
+    techniques_block,
+    write_blocks,
+)
 
 FIGURES = ("convergence.png", "work_precision.png", "time_constants.png")
 #: The sensitivity figure: ``compare --vary`` of the SE stiffness.
@@ -124,12 +130,20 @@ def checks_block() -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
-                        help="only check that every docs page has its generated blocks")
+                        help="only check that every docs page has its generated blocks (and "
+                             "that the techniques table is the registry's)")
+    parser.add_argument("--techniques", action="store_true",
+                        help="only rewrite the techniques table of docs/concepts.md")
     args = parser.parse_args()
     problems = missing_blocks()
     if problems:
         sys.exit("\n".join(problems))
-    if args.check:
+    if current_block("docs/concepts.md", "techniques") != techniques_block():
+        if args.check:
+            sys.exit("docs/concepts.md: the techniques table differs from the registry; run "
+                     "python scripts/make_docs.py --techniques")
+        write_blocks("docs/concepts.md", {"techniques": techniques_block()})
+    if args.check or args.techniques:
         return
     from torquesim.cli import main as torquesim
 

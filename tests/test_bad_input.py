@@ -77,7 +77,7 @@ def test_a_coordinate_named_time_is_refused(tmp_path, capsys):
 
 
 def test_an_imex_run_is_not_advised_to_use_imex():
-    from torquesim.solvers.simulate import _advice_text
+    from torquesim.solvers.simulation import _advice_text
 
     run = ts.simulate(ts.default_model(), "imex", 3.0, check=False)
     assert run.message and "'imex'" not in run.message
@@ -112,7 +112,7 @@ def test_the_advice_search_gives_up_after_bounded_work(monkeypatch):
     counted here, not timed."""
     import importlib
 
-    module = importlib.import_module("torquesim.solvers.simulate")
+    module = importlib.import_module("torquesim.solvers.simulation")
 
     steps = []
     original = module._fixed_step

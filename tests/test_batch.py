@@ -2,15 +2,15 @@
 target fails its own row, reruns do no finished work twice, a sweep with a known answer,
 the same seed gives the same table whatever the number of workers."""
 
-import math
 
 import numpy as np
 import pytest
 
 import torquesim as ts
 from torquesim.batch import fit_many, sweep
-from torquesim.batch.sweep import parse_vary, sample_matrix, set_parameter
+from torquesim.batch.sweep import parse_vary, sample_matrix
 from torquesim.cli import main
+from torquesim.model.paths import set_parameter
 
 distributed = pytest.importorskip("distributed")
 
@@ -166,24 +166,6 @@ def test_sample_matrix_crosses_grids_with_random_draws():
 def test_bad_distributions_are_refused(text):
     with pytest.raises(ts.ModelError):
         parse_vary(text)
-
-
-def test_parameter_paths_follow_the_model_file():
-    arm = ts.load_model("builtin:arm-raise")
-    assert set_parameter(arm, "shoulder_flexor.se_stiffness", 500).units[0] \
-        .parameters.se_stiffness == 500
-    assert set_parameter(arm, "units.elbow.extensor.isometric_torque", 40).units[3] \
-        .parameters.isometric_torque == 40
-    assert set_parameter(arm, "forearm_hand.dumbbell.mass", 3).segments[1].loads[0].mass == 3
-    assert set_parameter(arm, "elbow.initial_angle", 0.5).joints[1].initial_angle == 0.5
-    assert set_parameter(arm, "gravity", 1.6).gravity == 1.6
-    with pytest.raises(ts.ModelError, match="not a numeric model field"):
-        set_parameter(arm, "flexor.se_stiffness", 1.0)  # two joints: 'flexor' is ambiguous
-    with pytest.raises(ts.ModelError, match="se_stiffness"):
-        set_parameter(arm, "elbow_flexor.se_stiffness", -1.0)
-    assert math.isclose(set_parameter(ts.load_model("builtin:elbow-curl"),
-                                      "flexor.se_stiffness", 700).units[0]
-                        .parameters.se_stiffness, 700)
 
 
 def test_batch_cli_bad_input_is_one_line_exit_2(tmp_path, capsys):

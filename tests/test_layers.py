@@ -59,3 +59,59 @@ def test_the_layer_check_sees_function_level_imports(tmp_path):
     sample = PACKAGE / "cli.py"
     found = {inner for inner, _ in _imports(sample)}
     assert {"io", "solvers", "model"} <= found
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PACKAGE).with_suffix("")
+    parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+    return ".".join(("torquesim", *parts))
+
+
+def _module_imports(path: Path) -> set[str]:
+    """torquesim modules imported by ``path`` (function-level imports included), resolved to
+    module files: ``from .x import y`` is module x, or x.y when y is a module."""
+    known = {_module_name(p) for p in MODULES}
+    package = _module_name(path) if path.name == "__init__.py" else \
+        _module_name(path).rsplit(".", 1)[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module or ""
+            for alias in node.names:
+                if f"{module}.{alias.name}" in known:
+                    out.add(f"{module}.{alias.name}")
+                elif module in known:
+                    out.add(module)
+        elif isinstance(node, ast.Import):
+            out |= {alias.name for alias in node.names if alias.name in known}
+    out.discard(_module_name(path))
+    return out
+
+
+def test_no_module_imports_run_in_a_circle():
+    """No two modules import each other, directly or through others (package __init__ files,
+    which only re-export, are left out)."""
+    graph = {_module_name(p): {m for m in _module_imports(p)
+                               if not (PACKAGE.parent / m.replace(".", "/") / "__init__.py"
+                                       ).exists()}
+             for p in MODULES if p.name != "__init__.py"}
+    state: dict[str, int] = {}
+    cycles = []
+
+    def visit(node, trail):
+        state[node] = 1
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                cycles.append(trail[trail.index(nxt):] + [nxt] if nxt in trail else [node, nxt])
+            elif not state.get(nxt):
+                visit(nxt, trail + [nxt])
+        state[node] = 2
+
+    for start in sorted(graph):
+        if not state.get(start):
+            visit(start, [start])
+    assert not cycles, "import circles: " + "; ".join(" -> ".join(c) for c in cycles)

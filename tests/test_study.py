@@ -196,7 +196,7 @@ def test_no_slope_is_claimed_where_the_error_sits_at_a_floor():
     assert order_label(SYNTHETIC, "A").endswith("within 1° up to 0.5 ms)")
 
 
-@pytest.mark.parametrize("text", ["tendon_slack=0,1", "se_stiffness=", "dumbbell_mass=-1",
+@pytest.mark.parametrize("text", ["se_stiffness=", "dumbbell_mass=-1", "=1,2",
                                   "extensor_level=0.1,2", "se_stiffness=a,b"])
 def test_vary_rejects_bad_specs(text):
     from torquesim.study.sensitivity import parse_vary
@@ -204,6 +204,22 @@ def test_vary_rejects_bad_specs(text):
     with pytest.raises(ts.ModelError) as info:
         parse_vary(text)
     assert info.value.field == "--vary"
+
+
+def test_vary_takes_any_model_path_and_rejects_unknown_ones():
+    """``compare --vary`` shares the model's parameter paths with ``batch sweep --vary`` and
+    ``fit --bound``."""
+    from torquesim.study.sensitivity import parse_vary, vary_model
+
+    base = ts.load_model("builtin:arm-raise")
+    name, values = parse_vary("elbow.extensor.ramp1.level=0.2,0.3")
+    assert name == "elbow.extensor.ramp1.level" and values == (0.2, 0.3)
+    changed = vary_model(base, name, 0.3)
+    assert changed.units[3].activation.ramps[0].level == 0.3
+    assert changed.units[:3] == base.units[:3]
+    with pytest.raises(ts.ModelError) as info:
+        vary_model(base, "tendon_slack", 0.1)
+    assert info.value.field == "--vary" and "UNIT.FIELD" in info.value.reason
 
 
 def test_vary_model_changes_only_the_named_parameter():

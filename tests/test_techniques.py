@@ -72,3 +72,20 @@ def test_every_registered_technique_runs_under_its_name():
         run = ts.simulate(model, t.method, 5e-4, coupling=t.coupling, tolerance=None,
                           check=False)
         assert run.method == t.name
+
+
+def test_public_names_are_the_functions_whatever_was_imported_first():
+    """The solvers' names are imported on first use (so the CLI reads the registry without
+    Numba); no submodule may shadow one (a module ``solvers/simulate.py`` did: ``ts.simulate``
+    became the module once the fit had imported it)."""
+    import subprocess
+    import sys
+
+    code = ("import torquesim.fitting.fit, torquesim.batch.sweep, torquesim.study.compare\n"
+            "import torquesim as ts, torquesim.solvers as s\n"
+            "assert callable(ts.simulate) and s.simulate is ts.simulate, ts.simulate\n"
+            "assert callable(s.step_count) and isinstance(s.TECHNIQUES, tuple)\n"
+            "import sys; assert 'numba' in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True)
+    light = "import torquesim.cli, sys; assert 'numba' not in sys.modules, 'numba loaded'"
+    subprocess.run([sys.executable, "-c", light], check=True)

@@ -183,7 +183,7 @@ def _announce_compiling(*kernels) -> None:
 def _announce_size(model, method, step, duration, out_path) -> None:
     """One line on stderr before a run whose steps or output table are large."""
     from .errors import check_range
-    from .solvers.simulate import DEFAULT_OUTPUT_STEP, step_count
+    from .solvers.simulation import DEFAULT_OUTPUT_STEP, step_count
 
     span = model.duration if duration is None else check_range(
         "duration", duration, 0.0, 600.0, low_open=True, unit="s")
@@ -310,17 +310,19 @@ def _parse_steps(text: str) -> tuple[float, ...]:
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="compare-out",
               show_default=True, help="Directory for results.csv, figures, report.html.")
 @click.option("--vary", metavar="NAME=V1,V2,...",
-              help="Repeat the study per value of one parameter (every unit / every extensor / "
-                   "every point load): se_stiffness (N·m/rad), "
+              help="Repeat the study per value of one parameter: a model path as in `batch "
+                   "sweep` and `fit --bound` (e.g. elbow_flexor.se_stiffness, "
+                   "forearm_hand.dumbbell.mass, elbow_extensor.ramp1.level), or one field of "
+                   "every unit / extensor / point load at once: se_stiffness (N·m/rad), "
                    "extensor_level (constant co-activation), dumbbell_mass (kg), ce_damping "
-                   "(N·m·s/rad); writes "
-                   "sensitivity.csv/.png/.html and one study folder per value.")
+                   "(N·m·s/rad); writes sensitivity.csv/.png/.html and one study folder per "
+                   "value.")
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
 def compare(model_path, steps, repeats, out_dir, vary, quiet):
     """Every technique over a range of steps against the reference: accuracy, order,
     stability and cost, and the verdict."""
     from .io.model_file import load_model
-    from .solvers.simulate import step_count
+    from .solvers.simulation import step_count
     from .study.compare import verdict, verdict_sentences
     from .study.outputs import write_study
 

@@ -80,10 +80,11 @@ def plot_sweep(chain, histories: np.ndarray, frame, parameters: list[str], rho: 
     return fig
 
 
-def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> None:
-    """sweep.csv, sweep_percentiles.csv, sweep.png, rank_correlations.csv, sweep.html."""
+def write_sweep(out: Path, chain, frame, histories, distributions, settings,
+                outcome_columns: list[str]) -> None:
+    """sweep.csv, sweep_percentiles.csv, sweep.png, rank_correlations.csv, sweep.html;
+    ``outcome_columns``: the table's outcome columns (`sweep.outcome_columns`)."""
     from ..plots import save_figure
-    from .sweep import outcome_columns
 
     out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out / "sweep.csv", frame.to_csv(index=False))
@@ -97,7 +98,7 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings) -> 
                 bands[f"{joint.name}_p{p}_deg"] = row
     write_table(out / "sweep_percentiles.csv", bands)
     parameters = [d.path for d in distributions]
-    outcomes = [c for c in outcome_columns(chain)
+    outcomes = [c for c in outcome_columns
                 if c not in ("estimated_error_deg", "accuracy", "error")]
     rho = rank_correlations(frame, parameters, outcomes)
     figure = plot_sweep(chain, histories, frame, parameters, rho)

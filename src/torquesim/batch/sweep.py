@@ -1,9 +1,8 @@
 """Monte Carlo and grid sweeps over model parameters, simulated in chunks on Dask workers.
 
-A parameter is named by its path in the model file: ``UNIT.FIELD`` (a torque-generator field
-of a unit; ``flexor``/``extensor`` and ``JOINT.flexor`` name a joint's one unit of that
-direction, as in the fit), ``JOINT.FIELD``, ``SEGMENT.FIELD``, ``SEGMENT.LOAD.FIELD`` (a point
-load), ``gravity`` or ``base_angle``; ``units.NAME.FIELD`` and the like are accepted too.
+A parameter is named by its path in the model (`torquesim.model.paths`, the vocabulary of
+``compare --vary`` and ``fit --bound``): ``UNIT.FIELD``, ``UNIT.rampN.FIELD``,
+``JOINT.FIELD``, ``SEGMENT.FIELD``, ``SEGMENT.LOAD.FIELD``, ``gravity`` or ``base_angle``.
 Distributions: ``uniform(LOW,HIGH)``, ``normal(MEAN,SD)``, ``lognormal(MEDIAN,SIGMA)`` (σ of
 the logarithm) or ``grid(LOW,HIGH,N)``. Samples are drawn in the client from the seed (or
 a scrambled Sobol' sequence), so the table does not depend on the number of workers.
@@ -17,15 +16,15 @@ import math
 import os
 import re
 from contextlib import nullcontext
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ModelError, SimulationError, check_range
 from ..model.chain import ChainModel, as_chain
-from ..model.torque_generator import TorqueGeneratorUnit
-from ..solvers.simulate import DEFAULT_TOLERANCE
+from ..model.paths import parse_assignment, set_parameter
+from ..solvers.simulation import DEFAULT_TOLERANCE
 from ..solvers.techniques import FIT_METHODS
 
 DISTRIBUTIONS = ("uniform", "normal", "lognormal", "grid")
@@ -59,11 +58,11 @@ class Distribution:
 
 
 def parse_vary(text: str) -> Distribution:
-    """``PATH=KIND(a,b[,n])`` → `Distribution`."""
-    path, eq, spec = text.partition("=")
-    found = re.fullmatch(r"\s*(\w+)\s*\(([^)]*)\)\s*", spec)
+    """``PATH=KIND(a,b[,n])`` → `Distribution` (PATH: `torquesim.model.paths`)."""
     example = "flexor.se_stiffness=normal(600,60)"
-    if not eq or not path.strip() or not found or found.group(1) not in DISTRIBUTIONS:
+    path, spec = parse_assignment(text, "--vary", example)
+    found = re.fullmatch(r"\s*(\w+)\s*\(([^)]*)\)\s*", spec)
+    if not found or found.group(1) not in DISTRIBUTIONS:
         raise ModelError("--vary", f"{text!r}; allowed PATH=KIND(...), KIND one of "
                          f"{', '.join(DISTRIBUTIONS)}, e.g. {example}")
     kind = found.group(1)
@@ -88,46 +87,6 @@ def parse_vary(text: str) -> Distribution:
                              "a whole number in [1, 10000]")
         return Distribution(path.strip(), kind, a, b, int(n))
     return Distribution(path.strip(), kind, a, b)
-
-
-def set_parameter(model: ChainModel, path: str, value: float) -> ChainModel:
-    """``model`` with the numeric field at ``path`` (module docstring) set to ``value``;
-    the changed model is validated (a value out of range is a ModelError naming it)."""
-    parts = path.split(".")
-    if parts[0] in ("units", "joints", "segments") and len(parts) >= 3:
-        parts = parts[1:]
-    unit_fields = {f.name for f in fields(TorqueGeneratorUnit)}
-    units = {u.name: u.name for u in model.units} | model.unit_aliases()
-    head = ".".join(parts[:-1])
-    name = parts[-1]
-    value = float(value)
-    try:
-        if len(parts) == 1 and name in ("gravity", "base_angle"):
-            return model.replace(**{name: value})
-        if head in units and name in unit_fields:
-            unit = model.units[model.unit_index(units[head])]
-            return model.replace_unit(unit.name,
-                                      parameters=replace(unit.parameters, **{name: value}))
-        joints = {j.name for j in model.joints}
-        joint_fields = {f.name for f in fields(type(model.joints[0]))} - {"name", "coordinate"}
-        if head in joints and name in joint_fields:
-            return model.replace_joint(head, **{name: value})
-        segments = {s.name: s for s in model.segments}
-        segment_fields = {f.name for f in fields(type(model.segments[0]))} - {"name", "loads"}
-        if head in segments and name in segment_fields:
-            return model.replace_segment(head, **{name: value})
-        if len(parts) == 3 and parts[0] in segments:
-            segment = segments[parts[0]]
-            loads = {ld.name: i for i, ld in enumerate(segment.loads)}
-            if parts[1] in loads and name in ("mass", "distance", "inertia"):
-                new = list(segment.loads)
-                new[loads[parts[1]]] = replace(new[loads[parts[1]]], **{name: value})
-                return model.replace_segment(parts[0], loads=tuple(new))
-    except ModelError as exc:
-        raise ModelError(path, f"{value:g} gives an invalid model: {exc.reason}") from None
-    raise ModelError("--vary", f"{path!r} is not a numeric model field; allowed: UNIT.FIELD "
-                     f"(units {', '.join(units)}), JOINT.FIELD, SEGMENT.FIELD, "
-                     "SEGMENT.LOAD.mass|distance|inertia, gravity, base_angle")
 
 
 def sample_matrix(distributions, samples: int, seed: int, sobol: bool = False) -> np.ndarray:
@@ -179,7 +138,7 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
     against a run at twice the step, `simulate`'s default
     check, within ``tolerance`` rad) and the worker. A failing sample fills its own row with
     its one-line error."""
-    from ..solvers.simulate import simulate
+    from ..solvers.simulation import simulate
     from .engine import single_threaded, worker_name
 
     single_threaded()
@@ -273,7 +232,7 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     `TASKS_PER_WORKER` tasks.
     """
     from ..io.model_file import load_model, model_to_toml
-    from ..solvers.simulate import step_count
+    from ..solvers.simulation import step_count
     from .engine import check_scheduler, connect, workers_of
 
     if method not in FIT_METHODS:
@@ -292,7 +251,7 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     paths = [d.path for d in distributions]
     for d in distributions:  # every path and a typical value checked before any work
         typical = d.a if d.kind != "uniform" else 0.5 * (d.a + d.b)
-        set_parameter(chain, d.path, typical)
+        set_parameter(chain, d.path, typical, "--vary")
     values = sample_matrix(distributions, samples, seed, sobol)
     model_toml = model_to_toml(chain)
     whole = fingerprint(model_toml, values, method, step, paths, tolerance)
@@ -338,7 +297,7 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
         write_sweep(out, chain, table, histories, distributions,
                     {"samples": int(values.shape[0]), "seed": seed, "sobol": sobol,
                      "method": method, "step_s": step, "chunk": chunk,
-                     "tolerance_deg": math.degrees(tolerance)})
+                     "tolerance_deg": math.degrees(tolerance)}, outcome_columns(chain))
     return table, histories
 
 

@@ -204,7 +204,7 @@ def _initial_population(problem, guess, size, rng) -> np.ndarray:
 def _explain_failed_start(problem: FitProblem, x) -> None:
     """The start cannot be simulated with the fit's explicit technique: say why and stop
     (a fit whose every run breaks the RK4 stability limit would fit numerical artefacts)."""
-    from ..solvers.simulate import simulate
+    from ..solvers.simulation import simulate
 
     run = simulate(problem.model_for(x), problem.method, problem.step,
                    coupling=problem.coupling, check=False)
@@ -228,7 +228,7 @@ MAX_REFINEMENTS = 4
 def integration_gap(problem: FitProblem, x) -> dict[str, tuple[float, float]]:
     """Per scored joint (RMS error of the fit's own simulation, RMS error of the reference
     re-simulation), deg, of the model with parameters ``x``."""
-    from ..solvers.simulate import simulate
+    from ..solvers.simulation import simulate
 
     model = problem.model_for(x)
     own = simulate(model, problem.method, problem.step, coupling=problem.coupling,

@@ -14,7 +14,7 @@ from .. import __version__
 from ..io.atomic import write_text_atomic
 from ..io.model_file import save_model
 from ..io.tables import write_table
-from ..solvers.simulate import simulate
+from ..solvers.simulation import simulate
 from .fit import AGREEMENT_DEG, AGREEMENT_FRACTION, FitOutcome, SearchSettings, agrees
 from .objective import FAILED_SCORE
 from .problem import FitProblem

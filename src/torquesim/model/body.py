@@ -1,8 +1,12 @@
-"""The body: forearm + hand + dumbbell turning about a fixed elbow (docs/model.md §1).
+"""The body: rigid segments in a planar open chain hanging from a fixed pivot (docs/model.md
+§1 and §7): the elbow's parameters (`BodyParameters`), the joints' end stops, and the chain's
+equations of motion M(q)·q̈ = τ + T_p(q) − h(q, q̇) written once (`joint_accelerations`), with
+the one-segment case as a division (`single_segment_acceleration`), the abstract's Eq. 1
 
-    I_E · dω/dt = T_net + T_p(θ) − (m_t·g·l1 + m_db·g·l2)·sin θ          (abstract Eq. 1)
+    I_E · dω/dt = T_net + T_p(θ) − (m_t·g·l1 + m_db·g·l2)·sin θ.
 
-θ is elbow flexion (0 = full extension, forearm hanging down), in rad.
+Angles are joint flexion in rad (0 = the segment hanging straight on, at the elbow full
+extension).
 """
 
 from __future__ import annotations

@@ -42,7 +42,13 @@ from .body import (
     ZERO_OFFSET,
     passive_torque,
 )
-from .torque_generator import ACTIVATION_FLOOR, H_ISOMETRIC, TorqueGeneratorUnit, torque_angle
+from .torque_generator import (
+    ACTIVATION_FLOOR,
+    H_ISOMETRIC,
+    UNIT_ARRAY_SIZE,
+    TorqueGeneratorUnit,
+    torque_angle,
+)
 
 MAX_SEGMENTS = 6
 #: Columns of the packed segment array (see `ChainModel.pack`).
@@ -51,8 +57,9 @@ SEG_INERTIA, SEG_MOMENT, SEG_LENGTH, SEG_GRAVITY = (SEG_INERTIA_COLUMN, SEG_MOME
 SEGMENT_ARRAY_SIZE = 4
 JOINT_ARRAY_SIZE = JOINT_ROW_SIZE  # end stops, zero offset, speed limit (model.body)
 #: Extra columns of the packed unit rows (after the TorqueGeneratorUnit array).
-UNIT_JOINT, UNIT_DIRECTION = 18, 19
-UNIT_ROW_SIZE = 20
+UNIT_JOINT = UNIT_ARRAY_SIZE
+UNIT_DIRECTION = UNIT_ARRAY_SIZE + 1
+UNIT_ROW_SIZE = UNIT_ARRAY_SIZE + 2
 FLEXOR, EXTENSOR = 1, -1
 #: A joint speed above this many times its fastest unit's ω_max is physically impossible.
 SPEED_LIMIT_FACTOR = 10.0
@@ -284,7 +291,7 @@ class PackedChain(NamedTuple):
 
 
 class ChainStart(NamedTuple):
-    """Static equilibrium at rest (docs/model.md §4)."""
+    """Static equilibrium at rest (docs/model.md §7, "Static-equilibrium start")."""
 
     state: np.ndarray  #: y(0), rad and rad/s
     levels: np.ndarray  #: initial activation of every unit used in the run
@@ -513,7 +520,7 @@ class ChainModel:
         return -np.cumsum(per_segment[::-1])[::-1]
 
     def initial_state(self) -> ChainStart:
-        """Static equilibrium at rest at the joints' initial angles (docs/model.md §4).
+        """Static equilibrium at rest at the joints' initial angles (docs/model.md §7).
         Solved once per (immutable) model; each call returns fresh copies of the arrays.
 
         At joint j the units must cancel the load τ_load = Σ_{k≥j} g·B_k·sin φ_k − T_p(q_j)

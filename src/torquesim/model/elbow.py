@@ -1,6 +1,7 @@
-"""The whole elbow model: body, flexor and extensor units, their activation, and the start.
-
-State vector used everywhere: y = (θ, ω, θ_cc,F, θ_cc,E), rad and rad/s.
+"""The elbow parametrisation of the model (docs/model.md §1–§3): body, flexor and extensor
+units, their activation, and the start, as in the abstract. It converts to a one-segment
+`ChainModel` (`to_chain`), which every solver runs; its state is the chain's,
+y = (θ, ω, θ_cc,F, θ_cc,E) in rad and rad/s.
 """
 
 from __future__ import annotations
@@ -15,8 +16,6 @@ from ..errors import ModelError, check_range
 from .activation import ActivationProfile, Ramp
 from .body import BodyParameters
 from .torque_generator import TorqueGeneratorUnit
-
-STATE_NAMES = ("theta", "omega", "theta_cc_flexor", "theta_cc_extensor")
 
 
 class InitialState(NamedTuple):
@@ -98,42 +97,6 @@ class ElbowModel:
             raise ModelError("initial_angle", exc.reason) from None
         return InitialState(start.state, float(start.levels[0]), float(start.levels[1]),
                             float(start.torques[0]), float(start.torques[1]))
-
-    @classmethod
-    def from_chain(cls, chain, purpose: str = "this command") -> ElbowModel:
-        """The elbow parametrisation of a one-segment chain with one flexor and one extensor
-        unit and at most one point load; anything else is a `ModelError` saying that
-        ``purpose`` needs such a model."""
-        units = chain.units
-        problem = None
-        if chain.n_joints != 1:
-            problem = f"it has {chain.n_joints} joints"
-        elif len(units) != 2 or sorted(u.direction for u in units) != [-1, 1]:
-            problem = "its joint does not have exactly one flexor and one extensor unit"
-        elif len(chain.segments[0].loads) > 1:
-            problem = "its segment carries more than one point load"
-        elif chain.base_angle != 0.0:
-            problem = "its base angle is not 0"
-        if problem:
-            raise ModelError("model", f"{purpose} works on the one-joint elbow model only and "
-                             f"{chain.name!r} does not fit: {problem}; allowed: a model "
-                             "like builtin:elbow-curl")
-        seg, joint = chain.segments[0], chain.joints[0]
-        flexor = next(u for u in units if u.direction == 1)
-        extensor = next(u for u in units if u.direction == -1)
-        load = seg.loads[0] if seg.loads else None
-        body = BodyParameters(
-            gravity=chain.gravity, segment_mass=seg.mass,
-            segment_com_distance=seg.com_distance, segment_inertia=seg.inertia_about_joint,
-            dumbbell_mass=load.mass if load else 0.0,
-            dumbbell_distance=(load.distance if load and load.distance > 0 else
-                               max(seg.length, seg.com_distance, 1e-3)),
-            dumbbell_inertia=load.inertia if load else 0.0,
-            endstop_torque=joint.endstop_torque, endstop_angle_scale=joint.endstop_angle_scale,
-            endstop_lower_angle=joint.endstop_lower_angle,
-            endstop_upper_angle=joint.endstop_upper_angle)
-        return cls(body, flexor.parameters, extensor.parameters, flexor.activation,
-                   extensor.activation, joint.initial_angle, chain.duration)
 
     def to_chain(self, check: bool = True):
         """This elbow as a one-segment `ChainModel` (joint

@@ -8,8 +8,8 @@ from importlib import import_module
 
 _EXPORTS = {
     "Coupling": "coupling", "RunCost": "result", "SimulationResult": "result",
-    "StabilityReport": "result", "column_units": "result", "simulate": "simulate",
-    "step_count": "simulate", "METHODS": "techniques", "TECHNIQUES": "techniques",
+    "StabilityReport": "result", "simulate": "simulation",
+    "step_count": "simulation", "METHODS": "techniques", "TECHNIQUES": "techniques",
     "Technique": "techniques",
 }
 
@@ -27,4 +27,4 @@ def __dir__():
 
 
 __all__ = ["METHODS", "TECHNIQUES", "Coupling", "RunCost", "SimulationResult", "StabilityReport",
-           "Technique", "column_units", "simulate", "step_count"]
+           "Technique", "simulate", "step_count"]

@@ -80,7 +80,7 @@ class StabilityReport:
     ``max_step_ratio`` is the largest step/τ seen (τ: a unit's CE time constant), at time
     ``time`` in unit ``unit``. ``exceeded`` is True when it passed the RK4 limit 2.785: the
     motion is then probably wrong although bounded. ``largest_safe_step`` (s) is the step
-    found by running (``verified_step``, see `torquesim.solvers.simulate.verified_step`)
+    found by running (``verified_step``, see `torquesim.solvers.simulation.verified_step`)
     when the run failed or broke the limit; otherwise the estimate 2.785·min τ of this run."""
 
     max_step_ratio: float
@@ -198,7 +198,7 @@ class SimulationResult:
         ``theta_cc_<unit>``; per unit ``torque_<unit>``; per joint ``torque_net_<joint>``
         (muscles, flexion positive) and ``torque_passive_<joint>`` (end stops); per unit
         ``activation_<unit>`` (floored at 0.01) and ``omega_cc_<unit>`` (concentric
-        positive). See `column_units`."""
+        positive)."""
         unit_out, joint_out = self._derived()
         m = self.model
         cols = {"time": self.time}
@@ -233,16 +233,3 @@ class SimulationResult:
         angle = self.theta if joint is None else self.angle(joint)
         i = int(np.argmax(angle))
         return float(angle[i]), float(self.time[i])
-
-
-def column_units(name: str) -> str:
-    """SI unit of an output column of `SimulationResult.columns`."""
-    if name == "time":
-        return "s"
-    if name.startswith(("torque_",)):
-        return "N·m"
-    if name.startswith("activation_"):
-        return "-"
-    if name.startswith("omega_cc_") or name.endswith("_speed"):
-        return "rad/s"
-    return "rad"

@@ -14,7 +14,7 @@ import math
 
 from ..model.chain import as_chain
 from ..solvers import Coupling, simulate
-from ..solvers.simulate import SimulationError
+from ..solvers.simulation import SimulationError
 from .compare import _errors, reference_solution
 
 CHECK_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.25e-3)

@@ -17,7 +17,7 @@ from scipy.stats import linregress
 from ..errors import ModelError
 from ..model.chain import ChainModel, as_chain
 from ..solvers import simulate
-from ..solvers.simulate import step_count
+from ..solvers.simulation import step_count
 from ..solvers.techniques import Technique, study_techniques
 
 DEFAULT_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.2e-3, 0.1e-3, 0.05e-3)

@@ -20,6 +20,7 @@ from ..errors import ModelError
 from ..io.atomic import write_atomic, write_text_atomic
 from ..model.activation import ActivationProfile
 from ..model.chain import ChainModel, as_chain
+from ..model.paths import parse_assignment, set_parameter
 from .compare import ACCURACY_TARGETS_DEG, DEFAULT_REPEATS, stability_limit, verdict
 from .outputs import smooth_case_orders, write_study
 from .page import image, page, table
@@ -42,27 +43,35 @@ SUMMARY_COLUMNS = ("variable", "value", "technique", "stability_limit_s", "min_t
 
 
 def parse_vary(text: str) -> tuple[str, tuple[float, ...]]:
-    """``NAME=v1,v2,...`` → (name, values), checked against `VARIABLES`."""
-    name, _, rest = text.partition("=")
-    name = name.strip()
-    if name not in VARIABLES:
-        raise ModelError("--vary", f"{name!r} cannot be varied; allowed: "
-                         f"{', '.join(VARIABLES)} (e.g. se_stiffness=200,600,3000)")
+    """``NAME=v1,v2,...`` → (name, values). NAME is one of `VARIABLES` (a field of every unit
+    or every load at once, values checked against its range) or a parameter path of the model
+    (`torquesim.model.paths`, checked when the model is changed)."""
+    name, rest = parse_assignment(text, "--vary", "se_stiffness=200,600,3000")
     try:
         values = tuple(float(v) for v in rest.split(",") if v.strip())
     except ValueError:
         values = ()
-    low, high = VARIABLES[name][2]
+    low, high = VARIABLES[name][2] if name in VARIABLES else (-math.inf, math.inf)
     if not values or not all(math.isfinite(v) and low <= v <= high for v in values):
-        raise ModelError("--vary", f"{text!r}: allowed {name}=v1,v2,... with every value in "
-                         f"[{low:g}, {high:g}]")
+        allowed = f" in [{low:g}, {high:g}]" if name in VARIABLES else " finite"
+        raise ModelError("--vary", f"{text!r}: allowed {name}=v1,v2,... with every "
+                         f"value{allowed}")
     return name, values
 
 
+def describe(name: str) -> tuple[str, str]:
+    """(what ``name`` changes, its unit) for the page and the figure."""
+    if name in VARIABLES:
+        return VARIABLES[name][0], VARIABLES[name][1]
+    return f"the model's {name}", "SI units of the model file"
+
+
 def vary_model(model, name: str, value: float) -> ChainModel:
-    """``model`` (any chain) with parameter ``name`` set to ``value`` (see
-    `VARIABLES`)."""
+    """``model`` (any chain) with parameter ``name`` set to ``value`` (one of `VARIABLES`
+    or a parameter path, `torquesim.model.paths`)."""
     model = as_chain(model)
+    if name not in VARIABLES:
+        return set_parameter(model, name, value, "--vary")
     try:
         if name in ("se_stiffness", "ce_damping"):
             units = tuple(replace(u, parameters=replace(u.parameters, **{name: value}))
@@ -104,7 +113,7 @@ def summary_rows(name: str, value: float, rows: list[dict], reference) -> list[d
 
 def render_sensitivity(summary, name, figures: dict[float, bytes], overview: bytes) -> str:
     """A self-contained HTML page of the sensitivity study."""
-    what, unit, _ = VARIABLES[name]
+    what, unit = describe(name)
     headers = {"variable": "variable", "value": f"value ({unit})", "technique": "technique",
                "stability_limit_s": "stability limit (ms)", "min_tau_unit": "stiffest unit",
                "min_tau_s": "its smallest τ (ms)",
@@ -154,7 +163,7 @@ def write_sensitivity(directory, model, name: str, values, *, steps, repeats=DEF
     writer.writeheader()
     writer.writerows({k: ("" if v is None else v) for k, v in r.items()} for r in summary)
     write_text_atomic(directory / "sensitivity.csv", buf.getvalue())
-    overview = figure_png(plot_sensitivity(summary, name, VARIABLES[name][1]))
+    overview = figure_png(plot_sensitivity(summary, name, describe(name)[1]))
     write_atomic(directory / "sensitivity.png", lambda p: p.write_bytes(overview))
     write_text_atomic(directory / "sensitivity.html",
                       render_sensitivity(summary, name, figures, overview))

@@ -1,0 +1,171 @@
+"""Parameter paths: one vocabulary for naming a number in a model, shared by
+``torquesim compare --vary``, ``torquesim batch sweep --vary``, ``torquesim fit --bound`` /
+``--freeze`` and the Python API.
+
+A path is dot-separated:
+
+==============================  ==========================================================
+``UNIT.FIELD``                  a torque generator parameter of a unit, e.g.
+                                ``elbow_flexor.se_stiffness`` (units by name or alias:
+                                ``flexor``, ``elbow.extensor``; see `ChainModel.unit_aliases`)
+``UNIT.initial_level``          a unit's initial activation (when it has one)
+``UNIT.rampN.delay|duration|level``  the N-th activation ramp of a unit (N from 1)
+``JOINT.FIELD``                 a joint's field, e.g. ``elbow.initial_angle`` (rad)
+``SEGMENT.FIELD``               a segment's field, e.g. ``forearm_hand.mass`` (kg)
+``SEGMENT.LOAD.FIELD``          a point load's mass, distance or inertia
+``gravity``, ``base_angle``     the model's own numbers
+==============================  ==========================================================
+
+Optional leading ``units.``, ``joints.`` or ``segments.`` are accepted. Values are SI (the
+units of the model file); a value that makes the model invalid is a `ModelError` naming the
+path.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import fields, replace
+
+from ..errors import ModelError
+from .activation import Ramp
+from .chain import ChainModel
+from .torque_generator import TorqueGeneratorUnit
+
+RAMP_FIELDS = tuple(f.name for f in fields(Ramp))
+_RAMP = re.compile(r"ramp(\d+)")
+HELP = ("UNIT.FIELD, UNIT.initial_level, UNIT.rampN.delay|duration|level, JOINT.FIELD, "
+        "SEGMENT.FIELD, SEGMENT.LOAD.mass|distance|inertia, gravity, base_angle")
+
+
+def _parts(path: str) -> list[str]:
+    parts = path.strip().split(".")
+    if parts[0] in ("units", "joints", "segments") and len(parts) >= 3:
+        parts = parts[1:]
+    return parts
+
+
+def _unit_names(model: ChainModel) -> dict[str, str]:
+    return {u.name: u.name for u in model.units} | model.unit_aliases()
+
+
+def _not_a_path(model: ChainModel, path: str, field: str) -> ModelError:
+    return ModelError(field, f"{path!r} is not a numeric model field; allowed: {HELP} (units "
+                      f"{', '.join(_unit_names(model))})")
+
+
+def canonical_path(model: ChainModel, path: str, field: str = "path") -> str:
+    """``path`` with a unit alias replaced by the unit's name and the optional leading
+    ``units.``/``joints.``/``segments.`` dropped; a `ModelError` (on ``field``) if it names no
+    number of ``model``."""
+    get_parameter(model, path, field)
+    parts = _parts(path)
+    units = _unit_names(model)
+    for cut in range(len(parts) - 1, 0, -1):
+        head = ".".join(parts[:cut])
+        if head in units:
+            return ".".join([units[head], *parts[cut:]])
+    return ".".join(parts)
+
+
+def _locate(model: ChainModel, path: str, field: str):
+    """(kind, owner name, rest of the path) of ``path`` in ``model``."""
+    parts = _parts(path)
+    if len(parts) == 1 and parts[0] in ("gravity", "base_angle"):
+        return "model", "", parts
+    units = _unit_names(model)
+    unit_fields = {f.name for f in fields(TorqueGeneratorUnit)}
+    for cut in range(len(parts) - 1, 0, -1):  # unit names and aliases may contain dots
+        head, rest = ".".join(parts[:cut]), parts[cut:]
+        if head in units:
+            unit = model.units[model.unit_index(units[head])]
+            if len(rest) == 1 and rest[0] in unit_fields | {"initial_level"}:
+                return "unit", unit.name, rest
+            found = _RAMP.fullmatch(rest[0]) if len(rest) == 2 else None
+            if found and rest[1] in RAMP_FIELDS:
+                n = int(found.group(1))
+                if not 1 <= n <= len(unit.activation.ramps):
+                    raise ModelError(field, f"{path!r}: unit {unit.name} has "
+                                     f"{len(unit.activation.ramps)} ramps; allowed ramp1"
+                                     f"…ramp{len(unit.activation.ramps)}")
+                return "ramp", unit.name, [n - 1, rest[1]]
+    joints = {j.name for j in model.joints}
+    joint_fields = {f.name for f in fields(type(model.joints[0]))} - {"name", "coordinate"}
+    if len(parts) == 2 and parts[0] in joints and parts[1] in joint_fields:
+        return "joint", parts[0], parts[1:]
+    segments = {s.name: s for s in model.segments}
+    segment_fields = {f.name for f in fields(type(model.segments[0]))} - {"name", "loads"}
+    if len(parts) == 2 and parts[0] in segments and parts[1] in segment_fields:
+        return "segment", parts[0], parts[1:]
+    if len(parts) == 3 and parts[0] in segments and parts[2] in ("mass", "distance",
+                                                                    "inertia"):
+        if parts[1] in {ld.name for ld in segments[parts[0]].loads}:
+            return "load", parts[0], parts[1:]
+    raise _not_a_path(model, path, field)
+
+
+def get_parameter(model: ChainModel, path: str, field: str = "path") -> float:
+    """The number at ``path`` in ``model`` (SI)."""
+    kind, owner, rest = _locate(model, path, field)
+    if kind == "model":
+        value = getattr(model, rest[0])
+    elif kind == "unit":
+        unit = model.units[model.unit_index(owner)]
+        value = unit.activation.initial_level if rest == ["initial_level"] else \
+            getattr(unit.parameters, rest[0])
+        if value is None:
+            raise ModelError(field, f"{path!r}: unit {owner} starts from static equilibrium "
+                             "(no initial level to read or change)")
+    elif kind == "ramp":
+        value = getattr(model.units[model.unit_index(owner)].activation.ramps[rest[0]],
+                        rest[1])
+    elif kind == "joint":
+        value = getattr(model.joints[model.joint_index(owner)], rest[0])
+    elif kind == "segment":
+        value = getattr(next(s for s in model.segments if s.name == owner), rest[0])
+    else:
+        segment = next(s for s in model.segments if s.name == owner)
+        value = getattr(next(ld for ld in segment.loads if ld.name == rest[0]), rest[1])
+    return float(value)
+
+
+def set_parameter(model: ChainModel, path: str, value: float,
+                  field: str = "path") -> ChainModel:
+    """``model`` with the number at ``path`` set to ``value`` (SI); the changed model is
+    validated, and a value that makes it invalid is a `ModelError` naming ``path``."""
+    get_parameter(model, path, field)  # the path exists and holds a number
+    kind, owner, rest = _locate(model, path, field)
+    value = float(value)
+    try:
+        if kind == "model":
+            return model.replace(**{rest[0]: value})
+        if kind == "unit":
+            unit = model.units[model.unit_index(owner)]
+            if rest == ["initial_level"]:
+                return model.replace_unit(owner, activation=replace(unit.activation,
+                                                                    initial_level=value))
+            return model.replace_unit(owner, parameters=replace(unit.parameters,
+                                                                **{rest[0]: value}))
+        if kind == "ramp":
+            profile = model.units[model.unit_index(owner)].activation
+            ramps = list(profile.ramps)
+            ramps[rest[0]] = replace(ramps[rest[0]], **{rest[1]: value})
+            return model.replace_unit(owner, activation=replace(profile, ramps=tuple(ramps)))
+        if kind == "joint":
+            return model.replace_joint(owner, **{rest[0]: value})
+        if kind == "segment":
+            return model.replace_segment(owner, **{rest[0]: value})
+        segment = next(s for s in model.segments if s.name == owner)
+        loads = [replace(ld, **{rest[1]: value}) if ld.name == rest[0] else ld
+                 for ld in segment.loads]
+        return model.replace_segment(owner, loads=tuple(loads))
+    except ModelError as exc:
+        raise ModelError(path, f"{value:g} gives an invalid model: {exc.reason}") from None
+
+
+def parse_assignment(text: str, field: str, example: str) -> tuple[str, str]:
+    """``PATH=RIGHT`` → (PATH, RIGHT), both stripped: the one syntax of ``--vary``,
+    ``--bound`` and ``--freeze`` (what RIGHT holds is the option's)."""
+    path, eq, right = text.partition("=")
+    if not eq or not path.strip() or not right.strip():
+        raise ModelError(field, f"{text!r}; allowed PATH=..., e.g. {example}")
+    return path.strip(), right.strip()

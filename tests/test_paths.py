@@ -1,0 +1,72 @@
+"""One vocabulary of parameter paths (torquesim.model.paths) for compare --vary, batch sweep
+--vary, fit --bound/--freeze and the API."""
+
+import math
+
+import numpy as np
+import pytest
+
+import torquesim as ts
+from torquesim.fitting.parameters import ParameterSpace, with_ramps
+from torquesim.model.paths import canonical_path, get_parameter, set_parameter
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return ts.load_model("builtin:arm-raise")
+
+
+def test_parameter_paths_follow_the_model_file(arm):
+    assert set_parameter(arm, "shoulder_flexor.se_stiffness", 500).units[0] \
+        .parameters.se_stiffness == 500
+    assert set_parameter(arm, "units.elbow.extensor.isometric_torque", 40).units[3] \
+        .parameters.isometric_torque == 40
+    assert set_parameter(arm, "forearm_hand.dumbbell.mass", 3).segments[1].loads[0].mass == 3
+    assert set_parameter(arm, "elbow.initial_angle", 0.5).joints[1].initial_angle == 0.5
+    assert set_parameter(arm, "gravity", 1.6).gravity == 1.6
+    assert math.isclose(set_parameter(ts.load_model("builtin:elbow-curl"),
+                                      "flexor.se_stiffness", 700).units[0]
+                        .parameters.se_stiffness, 700)
+
+
+def test_get_and_set_are_inverse_and_change_nothing_else(arm):
+    for path in ("shoulder_flexor.se_stiffness", "elbow.extensor.ramp1.level",
+                 "shoulder_extensor.initial_level", "upper_arm.mass", "elbow.initial_angle",
+                 "forearm_hand.dumbbell.distance", "gravity"):
+        value = get_parameter(arm, path)
+        assert set_parameter(arm, path, value) == arm
+        other = value * 0.9 if value else 0.1
+        changed = set_parameter(arm, path, other)
+        assert get_parameter(changed, path) == pytest.approx(other)
+        assert changed != arm
+
+
+def test_activation_ramps_are_paths_and_the_fit_names_them_so(arm):
+    """Every parameter the fit searches (UNIT.rampN.FIELD) is a model path whose value in the
+    model the fit writes is the fitted one."""
+    space = ParameterSpace.for_model(arm)
+    x = np.array(space.lower) + 0.37 * (np.array(space.upper) - np.array(space.lower))
+    fitted = with_ramps(arm, x, [u.activation.initial_level for u in arm.units])
+    for name, value in zip(space.names, x, strict=True):
+        assert canonical_path(arm, name) == name
+        assert get_parameter(fitted, name) == pytest.approx(value)
+    assert canonical_path(arm, "shoulder.flexor.ramp2.delay") == "shoulder_flexor.ramp2.delay"
+
+
+@pytest.mark.parametrize("path, match", [
+    ("flexor.se_stiffness", "not a numeric model field"),  # two joints: ambiguous
+    ("tendon_slack", "not a numeric model field"),
+    ("shoulder_flexor.ramp9.delay", "ramp1"),
+    ("shoulder_flexor.initial_level", "static equilibrium"),
+    ("forearm_hand.kettlebell.mass", "not a numeric model field"),
+])
+def test_unknown_paths_are_one_clear_error(arm, path, match):
+    with pytest.raises(ts.ModelError, match=match) as info:
+        get_parameter(arm, path, "--vary")
+    assert info.value.field == "--vary"
+
+
+def test_an_invalid_value_names_the_path(arm):
+    with pytest.raises(ts.ModelError) as info:
+        set_parameter(arm, "elbow_flexor.se_stiffness", -1.0)
+    assert info.value.field == "elbow_flexor.se_stiffness"
