@@ -499,13 +499,11 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
         FitProblem,
         ParameterSpace,
         SearchSettings,
-        fit_to_accuracy,
         load_target,
     )
     from .fitting.fit import load_checkpoint
-    from .fitting.outputs import CHECKPOINT_FILE, FIT_FILES, summarise, summary_lines, write_outputs
+    from .fitting.outputs import CHECKPOINT_FILE, FIT_FILES, fit_and_write, summary_lines
     from .fitting.target import BUILTIN_TARGETS
-    from .io.lock import take_lock
     from .io.model_file import load_model
 
     out = Path(out_dir)
@@ -552,8 +550,6 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
                              "--out directory of an earlier fit")
         state = load_checkpoint(checkpoint, problem, settings)
     created = not out.exists()
-    out.mkdir(exist_ok=True)
-    lock = take_lock(out)
     if not quiet:
         from .fitting.objective import residual_population
 
@@ -572,22 +568,18 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
                                                                  signal.SIGTERM)}
     try:
         reporter = Progress(quiet)
-        problem, outcome, refinements = fit_to_accuracy(
-            problem, settings, checkpoint=checkpoint, resume=state, progress=reporter.say,
+        problem, outcome, summary, files = fit_and_write(
+            problem, settings, out, resume=state, progress=reporter.say,
             tick=lambda stage, done, total: reporter.step(done, total, stage),
             should_stop=lambda: bool(stop))
         reporter.close()
-        summary = summarise(problem, outcome, settings, refinements)
-        files = write_outputs(out, problem, outcome, summary)
     except ModelError:
-        lock.unlink(missing_ok=True)
-        if created and not any(out.iterdir()):
+        if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()
         raise
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        lock.unlink(missing_ok=True)
     click.echo("\n".join(summary_lines(summary)))
     click.echo(f"wrote {out_dir}/: {', '.join(files)}, {CHECKPOINT_FILE}")
     if stop and not outcome.interrupted:

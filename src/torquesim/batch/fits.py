@@ -110,21 +110,13 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str, stop: str | None
     folder's fit lock is held throughout (no two fits write one folder, wherever they run);
     the fit stops, writing the best so far and its checkpoint, when the client sets the Dask
     event ``stop`` (Ctrl-C)."""
-    from ..fitting import (
-        FitProblem,
-        ParameterSpace,
-        SearchSettings,
-        fit_to_accuracy,
-        load_target,
-    )
+    from ..fitting import FitProblem, ParameterSpace, SearchSettings, load_target
     from ..fitting.fit import load_checkpoint
-    from ..fitting.outputs import CHECKPOINT_FILE, summarise, write_outputs
-    from ..io.lock import take_lock
+    from ..fitting.outputs import CHECKPOINT_FILE, fit_and_write
     from ..io.model_file import load_model
     from .engine import single_threaded, stop_flag, worker_name
 
     single_threaded()
-    lock = None
     row = {"name": job.name, "target": job.target, "model": job.model,
            "worker": worker_name()}
     start = time.perf_counter()
@@ -137,8 +129,6 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str, stop: str | None
                              weight_effort=settings["weight_effort"])
         search = SearchSettings(search=settings["search"], seed=settings["seed"],
                                 starts=settings["starts"], iterations=settings["iterations"])
-        out.mkdir(parents=True, exist_ok=True)
-        lock = take_lock(out)
         checkpoint = out / CHECKPOINT_FILE
         state = None
         if checkpoint.is_file():
@@ -146,11 +136,8 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str, stop: str | None
                 state = load_checkpoint(checkpoint, problem, search)
             except ModelError:
                 state = None  # another fit's checkpoint: start again
-        problem, outcome, refinements = fit_to_accuracy(problem, search, checkpoint=checkpoint,
-                                                        resume=state,
-                                                        should_stop=stop_flag(stop))
-        summary = summarise(problem, outcome, search, refinements)
-        write_outputs(out, problem, outcome, summary)
+        problem, outcome, summary, _files = fit_and_write(problem, search, out, resume=state,
+                                                          should_stop=stop_flag(stop))
         if outcome.interrupted:
             row.update(_summary_figures(summary), status="interrupted",
                        error="stopped: best so far and checkpoint written")
@@ -160,9 +147,6 @@ def run_job(job: FitJob, settings: dict, folder: str, key: str, stop: str | None
     except (ModelError, SimulationError, OSError) as exc:
         row.update(status="failed", error=str(exc).splitlines()[0] if str(exc) else
                    type(exc).__name__)
-    finally:
-        if lock is not None:
-            lock.unlink(missing_ok=True)
     row["wall_time_s"] = time.perf_counter() - start
     return row
 

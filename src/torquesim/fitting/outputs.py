@@ -194,3 +194,32 @@ def summary_lines(summary: dict) -> list[str]:
         f"wall time     {summary['wall_time_s']:.1f} s",
     ]
     return lines + [f"warning: {w}" for w in summary["warnings"]]
+
+
+def fit_and_write(problem: FitProblem, settings: SearchSettings, out: Path, *,
+                  resume: dict | None = None, progress=None, tick=None,
+                  should_stop=lambda: False) -> tuple[FitProblem, FitOutcome, dict, list[str]]:
+    """The whole fit into the folder ``out`` (created if needed), as ``torquesim fit`` and
+    ``torquesim batch fit`` both run it: the folder's fit lock is held throughout (no two fits
+    write one folder, wherever they run); the search with its checkpoint
+    (``fit_checkpoint.npz``, resumed from ``resume``) and the integration-error control
+    (`fit_to_accuracy`); then the summary and every output file, each replaced atomically.
+    ``should_stop`` (polled) ends the search early with the best so far (the outcome says
+    ``interrupted``).
+
+    Returns (the problem at its final step, the outcome, the summary, the files written).
+    """
+    from ..io.lock import take_lock
+    from .fit import fit_to_accuracy
+
+    out.mkdir(parents=True, exist_ok=True)
+    lock = take_lock(out)
+    try:
+        problem, outcome, refinements = fit_to_accuracy(
+            problem, settings, checkpoint=out / CHECKPOINT_FILE, resume=resume,
+            progress=progress, tick=tick, should_stop=should_stop)
+        summary = summarise(problem, outcome, settings, refinements)
+        files = write_outputs(out, problem, outcome, summary)
+    finally:
+        lock.unlink(missing_ok=True)
+    return problem, outcome, summary, files
