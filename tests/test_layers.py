@@ -1,5 +1,7 @@
-"""The package's layers hold: model < solvers < study/fitting/cli; files through io; figures
-only in the plotting modules. Every import statement is read, function-level ones included."""
+"""The package's layers hold: errors < model < solvers < study/fitting/batch < cli, the
+side-by-side layers borrowing nothing from each other; files through io; figures only in the
+plotting modules; no import circle. Every import statement is read, function-level ones
+included."""
 
 import ast
 from pathlib import Path
@@ -8,13 +10,19 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "src" / "torquesim"
 #: Subpackage → the torquesim subpackages it must not import.
+#: ``errors`` is the bottom (every layer raises its errors); ``plots`` draws what the model,
+#: solvers and io give it and nothing above; study, fitting and batch sit side by side and do
+#: not borrow from each other (batch runs fits, so it may use fitting).
+EVERYTHING = {"model", "solvers", "study", "fitting", "io", "cli", "plots", "batch"}
 FORBIDDEN = {
-    "model": {"solvers", "study", "fitting", "io", "cli", "plots"},
-    "solvers": {"study", "fitting", "io", "cli", "plots"},
-    "io": {"solvers", "study", "fitting", "cli", "plots"},
-    "study": {"cli", "fitting"},
-    "fitting": {"cli", "study"},
-    "batch": {"cli"},
+    "errors": EVERYTHING,
+    "model": {"solvers", "study", "fitting", "io", "cli", "plots", "batch"},
+    "solvers": {"study", "fitting", "io", "cli", "plots", "batch"},
+    "io": {"solvers", "study", "fitting", "cli", "plots", "batch"},
+    "plots": {"study", "fitting", "batch", "cli"},
+    "study": {"cli", "fitting", "batch"},
+    "fitting": {"cli", "study", "batch"},
+    "batch": {"cli", "study"},
 }
 PLOTTING = {"plots.py", "study/report.py", "batch/report.py"}
 

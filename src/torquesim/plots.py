@@ -234,6 +234,18 @@ def _figure_grid(nrows: int, ncols: int, size):
     return fig, axes
 
 
+def figure_png(fig, dpi: int = 110) -> bytes:
+    """``fig`` as PNG bytes (for pages that inline their figures); closes the figure."""
+    import io
+
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()
+
+
 def save_figure(fig, path, field: str = "plot") -> None:
     """Save a figure atomically (format from the extension) and close it; a path that cannot
     be written is a ModelError under ``field``."""

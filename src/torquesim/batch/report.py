@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io.atomic import write_atomic, write_text_atomic
+from ..io.html_page import image, page, settings_table, table
 from ..io.tables import write_table
-from ..study.page import image, page, settings_table, table
 
 PERCENTILES = (5, 25, 50, 75, 95)
 
@@ -184,7 +184,7 @@ def plot_fits(out: Path, rows: list[dict]):
 
 def write_batch_page(out: Path, rows: list[dict], settings: dict) -> None:
     """batch.html: the table and the small multiples."""
-    from ..study.report import figure_png
+    from ..plots import figure_png
 
     png = figure_png(plot_fits(out, rows))
     write_atomic(out / "batch.png", lambda p: p.write_bytes(png))

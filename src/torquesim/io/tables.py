@@ -103,6 +103,33 @@ def save_result(result, path, field: str = "path") -> Path:
     return path
 
 
+def storage_header(lines: list[str], fail) -> tuple[int, bool | None, dict[str, int]]:
+    """The header of an OpenSim storage file (``.sto``/``.mot``) given as ``lines``: (index of
+    the first line after ``endheader``, ``inDegrees`` as True/False or None when absent, the
+    declared ``nRows``/``nColumns``). ``fail(message)`` makes the exception raised for a bad
+    header (no ``endheader``, an ``inDegrees`` other than yes/no, a count that is not a whole
+    number)."""
+    in_degrees = None
+    declared: dict[str, int] = {}
+    for i, line in enumerate(lines):
+        key = line.strip().lower().replace(" ", "")
+        if key.startswith("indegrees="):
+            value = key.split("=", 1)[1]
+            if value not in ("yes", "no"):
+                raise fail(f"line {i + 1}: inDegrees={value!r}; allowed yes or no")
+            in_degrees = value == "yes"
+        for field in ("nrows", "ncolumns"):
+            if key.startswith(field + "="):
+                try:
+                    declared[field] = int(key.split("=", 1)[1])
+                except ValueError:
+                    raise fail(f"line {i + 1}: {line.strip()!r} is not a whole "
+                               "number") from None
+        if key == "endheader":
+            return i + 1, in_degrees, declared
+    raise fail("no 'endheader' line; allowed: an OpenSim storage file")
+
+
 def read_table(path) -> dict[str, np.ndarray]:
     """Read a CSV or OpenSim storage file written by torquesim (or any numeric table with a
     header row) into columns. For .sto/.mot, ``inDegrees`` is returned under ``"_in_degrees"``
@@ -119,15 +146,9 @@ def read_table(path) -> dict[str, np.ndarray]:
         raise ModelError("path", f"{str(path)!r} is not UTF-8 text; allowed: a CSV or .sto "
                          "table") from None
     in_degrees = None
-    start = 0
     if kind == "sto":
-        for i, line in enumerate(lines):
-            key = line.strip().lower()
-            if key.startswith("indegrees="):
-                in_degrees = key.split("=", 1)[1].strip() == "yes"
-            if key == "endheader":
-                start = i + 1
-                break
+        start, in_degrees, _ = storage_header(
+            lines, lambda message: ModelError("path", f"{str(path)!r}: {message}"))
         rows = [line.split() for line in lines[start:] if line.strip()]
     else:
         rows = list(csv.reader(lines))

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelError
+from .tables import storage_header
 
 UNITS = ("deg", "rad")
 #: Fewest samples a target may have.
@@ -75,29 +76,9 @@ def read_angle_table(
         raise ModelError("target", f"cannot read {str(path)!r}: "
                          f"{getattr(exc, 'strerror', None) or exc}") from None
     suffix = path.suffix.lower()
-    first = 0
     declared = {}
     if suffix in (".mot", ".sto"):
-        in_degrees = None
-        for i, line in enumerate(lines):
-            key = line.strip().lower().replace(" ", "")
-            if key.startswith("indegrees="):
-                value = key.split("=", 1)[1]
-                if value not in ("yes", "no"):
-                    raise _fail(path, f"line {i + 1}: inDegrees={value!r}; allowed yes or no")
-                in_degrees = value == "yes"
-            for field in ("nrows", "ncolumns"):
-                if key.startswith(field + "="):
-                    try:
-                        declared[field] = int(key.split("=", 1)[1])
-                    except ValueError:
-                        raise _fail(path, f"line {i + 1}: {line.strip()!r} is not a whole "
-                                          "number") from None
-            if key == "endheader":
-                first = i + 1
-                break
-        else:
-            raise _fail(path, "no 'endheader' line; allowed: an OpenSim storage file")
+        first, in_degrees, declared = storage_header(lines, lambda message: _fail(path, message))
         if in_degrees is not None:
             stated = "deg" if in_degrees else "rad"
             if units is not None and units != stated:

@@ -11,6 +11,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from ..io.atomic import write_atomic, write_text_atomic
+from ..plots import figure_png
 from .cases import smooth_case, smooth_chain_case
 from .compare import (
     COLUMNS,
@@ -24,7 +25,6 @@ from .compare import (
     verdict_table,
 )
 from .report import (
-    figure_png,
     plot_convergence,
     plot_time_constants,
     plot_work_precision,

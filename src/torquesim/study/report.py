@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import html
-import io
 import math
 import textwrap
 
 import numpy as np
 
+from ..io.html_page import image, page, settings_table, table
+from ..plots import figure_png
 from ..solvers.fixed_step import RK4_STABILITY_LIMIT
 from .compare import (
     ACCURACY_TARGETS_DEG,
@@ -19,7 +20,6 @@ from .compare import (
     verdict,
     verdict_sentences,
 )
-from .page import image, page, settings_table, table
 
 #: Figure titles are wrapped at this many characters.
 TITLE_WIDTH = 70
@@ -172,15 +172,6 @@ def plot_time_constants(reference):
     fig.legend(*ax1.get_legend_handles_labels(), fontsize="small", loc="outside lower center",
                ncols=2)
     return fig
-
-
-def figure_png(fig) -> bytes:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
 
 
 EXPLANATION = """

@@ -18,13 +18,14 @@ import numpy as np
 
 from ..errors import ModelError
 from ..io.atomic import write_atomic, write_text_atomic
+from ..io.html_page import image, page, table
 from ..model.activation import ActivationProfile
 from ..model.chain import ChainModel, as_chain
 from ..model.paths import parse_assignment, set_parameter
+from ..plots import figure_png
 from .compare import ACCURACY_TARGETS_DEG, DEFAULT_REPEATS, stability_limit, verdict
 from .outputs import smooth_case_orders, write_study
-from .page import image, page, table
-from .report import figure_png, plot_sensitivity
+from .report import plot_sensitivity
 
 #: Parameter name → (what it changes, unit, allowed range).
 VARIABLES = {

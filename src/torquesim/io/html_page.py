@@ -1,5 +1,6 @@
-"""Self-contained HTML pages of the studies: one style, tables that fit the page, figures
-inlined as PNG. Pure string building; no Matplotlib here."""
+"""Self-contained HTML pages (the study's report, the sensitivity study, the batch fits and
+sweeps): one style, tables that fit the page, figures inlined as PNG. Pure string building;
+no Matplotlib here (figures come as PNG bytes, `torquesim.plots.figure_png`)."""
 
 from __future__ import annotations
 
