@@ -182,11 +182,11 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
 def max_unit_torque(model: ChainModel, states: np.ndarray) -> float:
     """The largest SE torque k·max(d·(θ_cc − q_j), 0) of any unit over the run, N·m
     (docs/model.md §2; the same as the ``torque_<unit>`` output columns)."""
-    n = model.n_joints
     joints = {j.name: k for k, j in enumerate(model.joints)}
     worst = 0.0
     for u, unit in enumerate(model.units):
-        stretch = unit.direction * (states[:, 2 * n + u] - states[:, joints[unit.joint]])
+        stretch = unit.direction * (states[:, model.layout.unit_state(u)]
+                                    - states[:, joints[unit.joint]])
         worst = max(worst, unit.parameters.se_stiffness * float(np.max(stretch)))
     return worst
 

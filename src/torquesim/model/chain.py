@@ -42,6 +42,7 @@ from .body import (
     ZERO_OFFSET,
     passive_torque,
 )
+from .state import StateLayout
 from .torque_generator import (
     ACTIVATION_FLOOR,
     H_ISOMETRIC,
@@ -382,7 +383,12 @@ class ChainModel:
 
     @property
     def state_size(self) -> int:
-        return 2 * self.n_joints + self.n_units
+        return self.layout.size
+
+    @property
+    def layout(self) -> StateLayout:
+        """Where q, q̇ and each unit's states sit in the state vector."""
+        return StateLayout(self.n_joints, self.n_units)
 
     def joint_index(self, name: str) -> int:
         """Index of the joint named ``name`` (or with that coordinate name)."""

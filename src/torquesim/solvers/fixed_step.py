@@ -32,6 +32,7 @@ from ..model.body import (
     single_segment_acceleration,
 )
 from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
+from ..model.state import unit_state, unit_states_start
 from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     BODY_FIRST,
     COUPLING_SIZE,
@@ -155,7 +156,6 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
     check_body_kind(seg, general_body)
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     size = y0.shape[0]
-    c = 2 * n
     y = y0.copy()
     for i in range(size):
         out[0, i] = y[i]
@@ -189,15 +189,15 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
             for j in range(n):
                 torque[j] = 0.0
             for u in range(nu):
-                x = stage[c + u]
+                x = stage[unit_state(n, u)]
                 j = unit_joint(units, u)
                 torque[j] += unit_joint_torque(stage[j], x, units, u)
                 if s == 0:
                     guess = _predict(seen[3, u], seen4_before[u], seen[0, u])
                 else:
                     guess = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
-                k[s, c + u], now[s, u], tau = unit_rate(stage[j], x, levels[at, u], guess, units,
-                                                        u)
+                k[s, unit_state(n, u)], now[s, u], tau = unit_rate(stage[j], x, levels[at, u],
+                                                                   guess, units, u)
                 if s == 0:
                     _record_stiffness(stats, t, h / tau, u)
             for j in range(n):
@@ -231,7 +231,7 @@ def _body_rk4(y, n, h, seg, joints, work, b, y_new, general_body):
     τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
     result into y_new[:2n]. ``b`` is the partitioned loop's scratch array."""
     half = 0.5 * h
-    m = 2 * n
+    m = unit_states_start(n)  # q and q̇: the body part
     for s in range(4):
         if s == 0:
             for i in range(m):
@@ -267,9 +267,8 @@ def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new):
     """
     hs = h / substeps
     half = 0.5 * hs
-    c = 2 * n
     for u in range(nu):
-        y_new[c + u] = y[c + u]
+        y_new[unit_state(n, u)] = y[unit_state(n, u)]
         b[_W4, u] = b[_OMEGA, u]  # the previous sub-step's last stage seeds the next first
     for sub in range(substeps):
         s0 = sub * hs
@@ -285,14 +284,16 @@ def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new):
                 j = unit_joint(units, u)
                 q = y[j] + b[_Q_SLOPE, j] / h * (s0 + lag) if s > 0 else \
                     y[j] + b[_Q_SLOPE, j] / h * s0
-                x = y_new[c + u] + lag * b[_K1 + s - 1, u] if s > 0 else y_new[c + u]
+                x = y_new[unit_state(n, u)]
+                if s > 0:
+                    x += lag * b[_K1 + s - 1, u]
                 guess = b[_W4, u] if s == 0 else b[_W1 + s - 1, u]
                 at = ts + lag if s > 0 else ts
                 b[_K1 + s, u], b[_W1 + s, u], b[_TAU, u] = unit_rate(
                     q, x, unit_activation(at, profiles, width, u), guess, units, u)
         w = hs / 6.0
         for u in range(nu):
-            y_new[c + u] += w * (b[_K1, u] + 2.0 * (b[_K2, u] + b[_K3, u]) + b[_K4, u])
+            y_new[unit_state(n, u)] += w * (b[_K1, u] + 2.0 * (b[_K2, u] + b[_K3, u]) + b[_K4, u])
 
 
 @njit(cache=True, error_model="numpy")
@@ -312,13 +313,12 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
     hs = h / substeps
     gh = SDIRK_GAMMA * hs
     solves = 0
-    c = 2 * n
     for u in range(nu):
         o = u * UNIT_ROW_SIZE
         j = int(units[o + UNIT_JOINT])
         d = units[o + UNIT_DIRECTION]
         rate = b[_Q_SLOPE, j] / h
-        x = y[c + u]
+        x = y[unit_state(n, u)]
         guess = b[_OMEGA, u]
         for sub in range(substeps):
             s = sub * hs
@@ -338,7 +338,7 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
             solves += count
             x = x2 + d * (gh * w2)
             guess = w2
-        y_new[c + u] = x
+        y_new[unit_state(n, u)] = x
     stats[NEWTON_ITERATIONS] += solves
     stats[IMPLICIT_SOLVES] += 2 * substeps * nu
 
@@ -354,7 +354,6 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
     """
     size = y.shape[0]
     half = 0.5 * h
-    c = 2 * n
     for s in range(4):
         if s == 0:
             for i in range(size):
@@ -367,11 +366,11 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
         for j in range(n):
             b[_TORQUE, j] = 0.0
         for u in range(nu):
-            x = b[_STAGE, c + u]
+            x = b[_STAGE, unit_state(n, u)]
             j = unit_joint(units, u)
             b[_TORQUE, j] += unit_joint_torque(b[_STAGE, j], x, units, u)
             guess = b[_OMEGA, u] if s == 0 else b[_W1 + s - 1, u]
-            b[_K1 + s, c + u], b[_W1 + s, u], b[_TAU, u] = unit_rate(
+            b[_K1 + s, unit_state(n, u)], b[_W1 + s, u], b[_TAU, u] = unit_rate(
                 b[_STAGE, j], x, unit_activation(at, profiles, width, u), guess, units, u)
         for j in range(n):
             b[_K1 + s, j] = b[_STAGE, n + j]
@@ -412,7 +411,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     tol = coupling[TOLERANCE]
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     size = y0.shape[0]
-    c = 2 * n
+    c = unit_states_start(n)
     y = y0.copy()
     y1 = y0.copy()
     for i in range(size):
@@ -430,7 +429,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
         for j in range(n):
             b[_TORQUE0, j] = 0.0
         for u in range(nu):
-            x = y[c + u]
+            x = y[unit_state(n, u)]
             j = unit_joint(units, u)
             b[_TORQUE0, j] += unit_joint_torque(y[j], x, units, u)
             b[_RATE, u], b[_OMEGA, u], tau = unit_rate(

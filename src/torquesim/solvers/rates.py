@@ -26,6 +26,7 @@ from numba import njit
 from ..model.activation import activation
 from ..model.body import body_work_size, joint_accelerations, single_segment_acceleration
 from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
+from ..model.state import unit_state, unit_states_start
 from ..model.torque_generator import unit_ce_velocity_and_time_constant, unit_torque
 
 
@@ -93,7 +94,7 @@ def chain_derivative(t, y, seg, joints, units, profiles):
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     dy = np.empty(y.shape[0])
     torque = np.empty(n)
-    joint_muscle_torques(y, y, 2 * n, units, nu, torque, n)
+    joint_muscle_torques(y, y, unit_states_start(n), units, nu, torque, n)
     for k in range(n):
         dy[k] = y[n + k]
     if n == 1:
@@ -104,6 +105,6 @@ def chain_derivative(t, y, seg, joints, units, profiles):
         for k in range(n):  # a loop: a slice assignment compiles a shape check (1.6 s cold)
             dy[n + k] = work[n * n + k]
     for u in range(nu):
-        dy[2 * n + u] = unit_rate(y[unit_joint(units, u)], y[2 * n + u],
+        dy[unit_state(n, u)] = unit_rate(y[unit_joint(units, u)], y[unit_state(n, u)],
                                   unit_activation(t, profiles, width, u), np.nan, units, u)[0]
     return dy

@@ -10,6 +10,7 @@ from numba import njit
 
 from ..model.body import JOINT_ROW_SIZE, passive_torque
 from ..model.chain import UNIT_ROW_SIZE, ChainModel, PackedChain
+from ..model.state import unit_state, unit_states_start
 from ..model.torque_generator import (
     ACTIVATION_FLOOR,
     unit_ce_velocity,
@@ -36,13 +37,13 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
     torque = np.empty(n)
     for i in range(time.shape[0]):
         y = states[i]
-        joint_muscle_torques(y, y, 2 * n, units, nu, torque, n)
+        joint_muscle_torques(y, y, unit_states_start(n), units, nu, torque, n)
         for j in range(n):
             joint_out[i, j, 0] = torque[j]
             joint_out[i, j, 1] = passive_torque(y[j], joints, j * JOINT_ROW_SIZE)
         for u in range(nu):
             o = u * UNIT_ROW_SIZE
-            theta_cc = y[2 * n + u]
+            theta_cc = y[unit_state(n, u)]
             stretch = unit_stretch(y[unit_joint(units, u)], theta_cc, units, u)
             level = max(unit_activation(time[i], profiles, width, u), ACTIVATION_FLOOR)
             w = unit_ce_velocity(stretch, theta_cc, level, units, np.nan, o)
@@ -158,18 +159,17 @@ class SimulationResult:
     @property
     def q(self) -> np.ndarray:
         """Joint angles, rad, shape (n, joints)."""
-        return self.states[:, : self.model.n_joints]
+        return self.states[:, self.model.layout.angles]
 
     @property
     def qd(self) -> np.ndarray:
         """Joint angular velocities, rad/s, shape (n, joints)."""
-        n = self.model.n_joints
-        return self.states[:, n: 2 * n]
+        return self.states[:, self.model.layout.speeds]
 
     @property
     def theta_cc(self) -> np.ndarray:
         """CE angles of the units, rad, shape (n, units)."""
-        return self.states[:, 2 * self.model.n_joints:]
+        return self.states[:, self.model.layout.unit_states]
 
     @property
     def theta(self) -> np.ndarray:

@@ -29,7 +29,7 @@ def smooth_case() -> tuple[ElbowModel, np.ndarray]:
     model = default_model().replace(flexor_activation=ActivationProfile(0.6),
                                     extensor_activation=ActivationProfile(0.3), duration=0.4)
     y0 = model.initial_state().state.copy()
-    y0[3] -= 0.002
+    y0[model.to_chain().layout.unit_state(1)] -= 0.002  # the extensor's θ_cc
     return model, y0
 
 
