@@ -12,7 +12,7 @@ import numpy as np
 
 from ..io.atomic import write_atomic, write_text_atomic
 from ..io.html_page import image, page, settings_table, table
-from ..io.tables import write_table
+from ..io.tables import write_rows, write_table
 
 PERCENTILES = (5, 25, 50, 75, 95)
 
@@ -87,7 +87,7 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings,
     from ..plots import save_figure
 
     out.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(out / "sweep.csv", frame.to_csv(index=False))
+    write_rows(out / "sweep.csv", frame.itertuples(index=False), list(frame.columns))
     grid = np.linspace(0.0, chain.duration, histories.shape[2])
     finished = histories[(frame["accuracy"] == "ok").to_numpy()]  # as the figure: accurate
     bands = {"time": grid}
@@ -104,11 +104,8 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings,
     figure = plot_sweep(chain, histories, frame, parameters, rho)
     png_path = out / "sweep.png"
     save_figure(figure, png_path, "--out")
-    rows = [[p, *(rho[p][o] for o in outcomes)] for p in parameters]
-    write_text_atomic(out / "rank_correlations.csv",
-                      ",".join(["parameter", *outcomes]) + "\n"
-                      + "".join(",".join([r[0], *(repr(v) for v in r[1:])]) + "\n"
-                                for r in rows))
+    rows = [[p, *(float(rho[p][o]) for o in outcomes)] for p in parameters]
+    write_rows(out / "rank_correlations.csv", rows, ["parameter", *outcomes])
     counts = frame["accuracy"].value_counts().to_dict()
     body = [f"<p>{len(frame)} samples: {counts.get('ok', 0)} accurate (estimated max angle "
             f"error within the tolerance), {counts.get('inaccurate', 0)} inaccurate, "
@@ -135,15 +132,7 @@ BATCH_COLUMNS = ("name", "target", "model", "status", "rms_deg", "max_deg",
 
 def write_batch_table(out: Path, rows: list[dict]) -> None:
     """batch.csv (one row per target, in the order given), atomically."""
-    import csv
-    import io
-
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=BATCH_COLUMNS, extrasaction="ignore")
-    writer.writeheader()
-    writer.writerows({k: ("" if r.get(k) is None else r.get(k)) for k in BATCH_COLUMNS}
-                     for r in rows)
-    write_text_atomic(out / "batch.csv", buf.getvalue())
+    write_rows(out / "batch.csv", rows, BATCH_COLUMNS)
 
 
 def plot_fits(out: Path, rows: list[dict]):

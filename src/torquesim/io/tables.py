@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
 import platform
 from datetime import UTC, datetime
@@ -51,6 +52,37 @@ def write_table(path, columns: dict[str, np.ndarray], *, name: str = "torquesim"
     if kind == "csv":
         return write_atomic(path, lambda tmp: _write_csv(tmp, columns), field)
     return write_atomic(path, lambda tmp: _write_sto(tmp, columns, name, in_degrees), field)
+
+
+def csv_cell(value) -> str:
+    """One CSV cell: empty for None, floats in full precision (``repr``), tuples joined by
+    ``;``, anything else as ``str``."""
+    if value is None:
+        return ""
+    if isinstance(value, float | np.floating):
+        return repr(float(value))
+    if isinstance(value, tuple):
+        return ";".join(repr(v) for v in value)
+    return str(value)
+
+
+def rows_csv(rows, columns) -> str:
+    """Rows (dicts, or sequences in ``columns`` order) as CSV text with a header."""
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow(columns)
+    for r in rows:
+        cells = [r.get(c) for c in columns] if isinstance(r, dict) else list(r)
+        writer.writerow([csv_cell(v) for v in cells])
+    return buf.getvalue()
+
+
+def write_rows(path, rows, columns, field: str = "out") -> Path:
+    """Write rows (dicts or sequences) as a CSV table with ``columns`` as its header,
+    atomically: every table of records torquesim writes (study results and verdict, the
+    sensitivity summary, batch tables, rank correlations) goes through here."""
+    text = rows_csv(rows, list(columns))
+    return write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"), field)
 
 
 def manifest(result, **extra) -> dict:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import os
 import platform
@@ -11,6 +9,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from ..io.atomic import write_atomic, write_text_atomic
+from ..io.tables import write_rows
 from ..plots import figure_png
 from .cases import smooth_case, smooth_chain_case
 from .compare import (
@@ -44,28 +43,6 @@ def smooth_case_orders(progress=None, chain: bool = False) -> dict[str, float]:
     rows, _ = run_study(model, steps=SMOOTH_STEPS, tolerances=(), techniques=techniques,
                         repeats=1, initial_state=y0, progress=progress)
     return {t.name: observed_order(rows, t.name) for t in techniques}
-
-
-def _csv_value(value) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, tuple):
-        return ";".join(repr(v) for v in value)
-    return str(value)
-
-
-def rows_to_csv(rows, columns=None) -> str:
-    """Rows as CSV (floats in full precision, tuples joined by ``;``). Default columns: the
-    first row's keys (the study table: `COLUMNS` then the per-joint error columns)."""
-    columns = list(columns or (rows[0] if rows else COLUMNS))
-    buf = io.StringIO()
-    writer = csv.writer(buf)
-    writer.writerow(columns)
-    for r in rows:
-        writer.writerow([_csv_value(r.get(c)) for c in columns])
-    return buf.getvalue()
 
 
 def calibration_text(coefficients: dict[str, float]) -> dict[str, str]:
@@ -103,9 +80,9 @@ def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=No
         if progress:
             progress(0, 0, "smooth case orders")
         smooth = smooth_case_orders(chain=model.n_joints > 1)
-    write_text_atomic(directory / "results.csv", rows_to_csv(rows))
+    write_rows(directory / "results.csv", rows, list(rows[0] if rows else COLUMNS))
     verdicts = verdict_table(verdict(rows))
-    write_text_atomic(directory / "verdict.csv", rows_to_csv(verdicts, VERDICT_COLUMNS))
+    write_rows(directory / "verdict.csv", verdicts, VERDICT_COLUMNS)
     for name, plot in (("convergence", plot_convergence), ("work_precision", plot_work_precision)):
         png = figure_png(plot(rows))
         write_atomic(directory / f"{name}.png", lambda p, png=png: p.write_bytes(png))

@@ -7,9 +7,7 @@ activation, fast lengthening, stiff SE) is where explicit schemes suffer.
 
 from __future__ import annotations
 
-import csv
 import html
-import io
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -19,6 +17,7 @@ import numpy as np
 from ..errors import ModelError
 from ..io.atomic import write_atomic, write_text_atomic
 from ..io.html_page import image, page, table
+from ..io.tables import write_rows
 from ..model.activation import ActivationProfile
 from ..model.chain import ChainModel, as_chain
 from ..model.paths import parse_assignment, set_parameter
@@ -159,11 +158,7 @@ def write_sensitivity(directory, model, name: str, values, *, steps, repeats=DEF
                                          model_source=f"{model_source}, {name}={value:g}")
         summary += summary_rows(name, value, rows, reference)
         figures[value] = figure_png(plot_time_constants(reference))
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=SUMMARY_COLUMNS)
-    writer.writeheader()
-    writer.writerows({k: ("" if v is None else v) for k, v in r.items()} for r in summary)
-    write_text_atomic(directory / "sensitivity.csv", buf.getvalue())
+    write_rows(directory / "sensitivity.csv", summary, SUMMARY_COLUMNS)
     overview = figure_png(plot_sensitivity(summary, name, describe(name)[1]))
     write_atomic(directory / "sensitivity.png", lambda p: p.write_bytes(overview))
     write_text_atomic(directory / "sensitivity.html",
