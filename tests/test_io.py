@@ -139,3 +139,21 @@ def test_a_failed_write_keeps_the_previous_file(tmp_path):
     with pytest.raises(ts.ModelError, match="No space left"):
         write_atomic(path, broken)
     assert path.read_text() == "previous\n" and sorted(tmp_path.iterdir()) == [path]
+
+
+def test_one_fingerprint_tells_apart_what_it_must():
+    """The one hasher of checkpoints, sweep chunks and batch fits: equal parts give equal
+    fingerprints; a changed value, dtype, shape or split between parts does not."""
+    import numpy as np
+
+    from torquesim.io.fingerprint import fingerprint
+
+    a = np.arange(6, dtype=float)
+    base = fingerprint("model", a, ("imex", 5e-3))
+    assert base == fingerprint("model", a.copy(), ("imex", 5e-3)) and len(base) == 16
+    others = [fingerprint("model", a + 1e-12, ("imex", 5e-3)),
+              fingerprint("model", a.reshape(2, 3), ("imex", 5e-3)),
+              fingerprint("model", a.astype(np.float32), ("imex", 5e-3)),
+              fingerprint("mode", "l", a, ("imex", 5e-3)),
+              fingerprint("model", a, ("imex", 2.5e-3))]
+    assert base not in others and len(set(others)) == len(others)

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import csv
 import glob
-import hashlib
 import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ModelError, SimulationError, check_range
+from ..io.fingerprint import fingerprint
 from .report import write_batch_page, write_batch_table
 
 FINGERPRINT_FILE = "batch_fingerprint.txt"
@@ -96,11 +96,9 @@ def _absolute(spec: str) -> str:
 
 def job_fingerprint(job: FitJob, settings: dict) -> str:
     """Hash of the target's content, the model file's content and the fit settings."""
-    h = hashlib.sha256()
-    for spec in (job.target, job.model):
-        h.update(spec.encode() if spec.startswith("builtin:") else Path(spec).read_bytes())
-    h.update(json.dumps([job.column, settings], sort_keys=True).encode())
-    return h.hexdigest()[:16]
+    files = [spec if spec.startswith("builtin:") else Path(spec).read_bytes()
+             for spec in (job.target, job.model)]
+    return fingerprint(*files, json.dumps([job.column, settings], sort_keys=True))
 
 
 def run_job(job: FitJob, settings: dict, folder: str, key: str, stop: str | None = None

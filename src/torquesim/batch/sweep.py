@@ -10,7 +10,6 @@ a scrambled Sobol' sequence), so the table does not depend on the number of work
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -22,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelError, SimulationError, check_range
+from ..io.fingerprint import fingerprint as hash_parts
 from ..model.chain import ChainModel, as_chain
 from ..model.paths import parse_assignment, set_parameter
 from ..solvers.simulation import DEFAULT_TOLERANCE
@@ -194,11 +194,8 @@ def max_unit_torque(model: ChainModel, states: np.ndarray) -> float:
 def fingerprint(model_toml: str, values: np.ndarray, method: str, step: float, paths,
                 tolerance: float = DEFAULT_TOLERANCE) -> str:
     """Hash of what a finished chunk is valid for."""
-    h = hashlib.sha256()
-    h.update(model_toml.encode())
-    h.update(np.ascontiguousarray(values).tobytes())
-    h.update(repr((method, step, list(paths), tolerance, "accuracy-verdict")).encode())
-    return h.hexdigest()[:16]
+    return hash_parts(model_toml, np.asarray(values, dtype=float),
+                      (method, step, list(paths), tolerance, "accuracy-verdict"))
 
 
 #: Work (samples × steps × units) below which a sweep runs in this process instead of starting

@@ -18,7 +18,6 @@ from its beginning, so the result is the one an uninterrupted fit gives).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import time
@@ -32,6 +31,7 @@ from scipy.stats import qmc
 
 from ..errors import ModelError, check_range
 from ..io.atomic import write_atomic
+from ..io.fingerprint import fingerprint as hash_parts
 from .initial_guess import initial_guess
 from .objective import FAILED_SCORE
 from .problem import FitProblem
@@ -119,13 +119,11 @@ class FitOutcome:
 
 def fingerprint(problem: FitProblem) -> str:
     """Hash of what a checkpoint is only valid for: target, model, space, technique."""
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(problem.target.time).tobytes())
-    h.update(np.ascontiguousarray(problem.target.angles).tobytes())  # every scored joint
-    h.update(repr((problem.model, problem.space, problem.method, problem.step,
-                   problem.weight_velocity, problem.weight_end, problem.weight_effort,
-                   problem.weights.tolist(), problem.target.joints)).encode())
-    return h.hexdigest()[:16]
+    return hash_parts(np.asarray(problem.target.time, dtype=float),
+                      np.asarray(problem.target.angles, dtype=float),  # every scored joint
+                      (problem.model, problem.space, problem.method, problem.step,
+                       problem.weight_velocity, problem.weight_end, problem.weight_effort,
+                       problem.weights.tolist(), problem.target.joints))
 
 
 def save_checkpoint(path, state: dict) -> None:
