@@ -14,15 +14,13 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields
 
-import numpy as np
 from numba import njit
 
 from ..errors import ModelError, check_range
 
-# Layout of a packed end-stop array (a chain joint's row, torquesim.model.chain), and of the
-# elbow's packed body array, which adds the inertia and gravity coefficient.
-ENDSTOP_TORQUE, ENDSTOP_SCALE, ENDSTOP_LOW, ENDSTOP_HIGH, INERTIA, GRAVITY_TORQUE = range(6)
-BODY_ARRAY_SIZE = 6
+# Layout of a packed end-stop array: the first columns of a chain joint's row
+# (torquesim.model.chain).
+ENDSTOP_TORQUE, ENDSTOP_SCALE, ENDSTOP_LOW, ENDSTOP_HIGH = range(4)
 
 
 @dataclass(frozen=True)
@@ -111,17 +109,6 @@ class BodyParameters:
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
 
-    def to_array(self) -> np.ndarray:
-        """Pack into the float array read by the compiled functions."""
-        p = np.zeros(BODY_ARRAY_SIZE)
-        p[INERTIA] = self.elbow_inertia
-        p[GRAVITY_TORQUE] = self.gravity_torque_coefficient
-        p[ENDSTOP_TORQUE] = self.endstop_torque
-        p[ENDSTOP_SCALE] = self.endstop_angle_scale
-        p[ENDSTOP_LOW] = self.endstop_lower_angle
-        p[ENDSTOP_HIGH] = self.endstop_upper_angle
-        return p
-
 
 @njit(cache=True, error_model="numpy", inline="always")
 def passive_torque(theta, b, o=0):
@@ -141,10 +128,10 @@ def passive_energy(theta, b, o=0):
 
 #: Column of a packed joint row holding the angle offset added to q_k in φ_k (the chain's
 #: base angle for the first joint, 0 for the others), and the joint row size.
-ZERO_OFFSET = 4
+ZERO_OFFSET = ENDSTOP_HIGH + 1
 #: Column of a packed joint row holding the largest physically possible joint speed, rad/s.
-SPEED_LIMIT = 5
-JOINT_ROW_SIZE = 6
+SPEED_LIMIT = ZERO_OFFSET + 1
+JOINT_ROW_SIZE = SPEED_LIMIT + 1
 #: Columns of the packed segment array (torquesim.model.chain.ChainModel.segment_array).
 SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN = range(4)
 

@@ -79,9 +79,9 @@ RK4_STABILITY_LIMIT = 2.785293563405282
 #: Diagonal coefficient γ = 1 − 1/√2 of the L-stable two-stage SDIRK method of order 2.
 SDIRK_GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
 #: Rows of the scratch array of the partitioned loop (each row as long as the state).
-(_K1, _K2, _K3, _K4, _STAGE, _W1, _W2, _W3, _W4, _LEVELS, _TAU, _Q, _TORQUE, _TORQUE0,
- _TORQUE_SLOPE, _Q_SLOPE, _RATE, _OMEGA, _OLD, _GUESS) = range(20)
-_SCRATCH_ROWS = 20
+(_K1, _K2, _K3, _K4, _STAGE, _W1, _W2, _W3, _W4, _TAU, _Q, _TORQUE, _TORQUE0,
+ _TORQUE_SLOPE, _Q_SLOPE, _RATE, _OMEGA, _OLD) = range(18)
+_SCRATCH_ROWS = 18
 
 
 @njit(cache=True, error_model="numpy", inline="always")
