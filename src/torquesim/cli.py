@@ -439,7 +439,7 @@ def _search_options(fn):
                    "joint's coordinate, e.g. elbow_flexion, its name, or the only column "
                    "containing its name). On a one-joint model a bare COLUMN works. Joints "
                    "without a column are simulated, not scored.")
-@click.option("--units", type=click.Choice(["deg", "rad"]),
+@click.option("--angle-units", "--units", "units", type=click.Choice(["deg", "rad"]),
               help="Units of the target angles (CSV default deg; .mot/.sto: inDegrees).")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
               help="Model: a TOML file or builtin:elbow-curl|knee-extension|arm-raise. Every "
@@ -530,7 +530,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
         for joint, angle in zip(target.joints, target.angles, strict=True):
             if np.max(np.abs(np.degrees(angle))) <= math.pi:
                 click.echo(f"warning: every target angle of {joint} is within ±3.2 degrees; "
-                           "if the file is in radians, pass --units rad", err=True)
+                           "if the file is in radians, pass --angle-units rad", err=True)
     space = ParameterSpace.for_model(base, rest_level=rest_level)
     for name, (low, high) in _parse_assignments(bounds, "--bound", 2).items():
         space = space.with_bounds(name, low, high)
@@ -648,7 +648,7 @@ def _batch_progress(quiet: bool, label: str):
 @click.option("--weight-effort", type=click.FloatRange(0.0, 1e6), default=0.0,
               show_default=True, help="Weight (deg² per activation²) of the effort term, as "
                                       "in `fit`.")
-@click.option("--units", type=click.Choice(["deg", "rad"]),
+@click.option("--angle-units", "--units", "units", type=click.Choice(["deg", "rad"]),
               help="Units of CSV targets (default deg; .mot/.sto: inDegrees).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="batch-out",
               show_default=True, help="One folder per target, batch.csv and batch.html.")

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import json
 import math
-import platform
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
 from ..io.atomic import write_text_atomic
 from ..io.model_file import save_model
+from ..io.provenance import provenance
 from ..io.tables import write_table
 from ..solvers.simulation import simulate
 from .fit import AGREEMENT_DEG, AGREEMENT_FRACTION, FitOutcome, SearchSettings, agrees
@@ -57,8 +55,7 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         warnings.append(fitted.message)
     free = set(problem.space.free.tolist())
     return {
-        "torquesim_version": __version__,
-        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        **provenance(),
         "target": {"source": problem.target.source, "samples": int(problem.target.time.size),
                    "duration_s": problem.target.duration,
                    "joints": list(problem.target.joints)},
@@ -94,7 +91,6 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         "initial_guess": problem.space.table(outcome.initial_x),
         "step_refinements": refinements or [],
         "warnings": warnings,
-        "machine": {"python": platform.python_version(), "platform": platform.platform()},
         "_results": (fitted, reference),
         "_x": outcome.x,
     }

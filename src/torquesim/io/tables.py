@@ -5,14 +5,13 @@ from __future__ import annotations
 import csv
 import io
 import json
-import platform
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ModelError
 from .atomic import write_atomic, write_text_atomic
+from .provenance import provenance
 
 TABLE_SUFFIXES = (".csv", ".sto", ".mot")
 
@@ -87,13 +86,11 @@ def write_rows(path, rows, columns, field: str = "out") -> Path:
 
 def manifest(result, **extra) -> dict:
     """What is needed to repeat a run: version, model, method, settings, machine."""
-    from .. import __version__
     from .model_file import model_to_toml
 
     stability = result.stability
     return {
-        "torquesim_version": __version__,
-        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        **provenance(),
         "method": result.method,
         "step_s": result.step,
         "settings": result.settings,
@@ -105,8 +102,6 @@ def manifest(result, **extra) -> dict:
             "max_step_over_tau": stability.max_step_ratio, "at_time_s": stability.time,
             "unit": stability.unit, "exceeded": stability.exceeded,
             "largest_safe_step_s": stability.largest_safe_step},
-        "machine": {"python": platform.python_version(), "platform": platform.platform(),
-                    "processor": platform.machine()},
         "model_toml": model_to_toml(result.model),
         **extra,
     }

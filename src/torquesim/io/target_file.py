@@ -83,7 +83,7 @@ def read_angle_table(
             stated = "deg" if in_degrees else "rad"
             if units is not None and units != stated:
                 raise _fail(path, f"header says inDegrees={'yes' if in_degrees else 'no'} "
-                                  f"but --units is {units}")
+                                  f"but --angle-units is {units}")
             units = stated
         rows = [(i + 1, line.split()) for i, line in enumerate(lines) if i >= first]
     elif suffix in (".csv", ".txt"):
@@ -142,7 +142,7 @@ def read_angle_table(
         if worst > 2 * math.pi:
             raise _fail(path, f"column {name!r}: {math.degrees(worst):.4g}° is more than a "
                               "full turn: not a joint angle in these units; allowed |angle| "
-                              "≤ 360° (check --units or the file's inDegrees)")
+                              "≤ 360° (check --angle-units or the file's inDegrees)")
         out[name] = np.ascontiguousarray(table[:, i])
     return np.array(time), out
 

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import json
-import os
-import platform
-from datetime import UTC, datetime
 from pathlib import Path
 
 from ..io.atomic import write_atomic, write_text_atomic
+from ..io.provenance import load_average, provenance
 from ..io.tables import write_rows
 from ..plots import figure_png
 from .cases import smooth_case, smooth_chain_case
@@ -65,7 +63,6 @@ def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=No
     work_precision.png, time_constants.png, report.html and manifest.json into ``directory``.
     ``smooth`` (orders on the smooth case) is measured unless given. ``timer``: see
     `run_study`."""
-    from .. import __version__
     from ..io.model_file import model_to_toml
     from ..model.chain import as_chain
 
@@ -89,7 +86,7 @@ def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=No
     png = figure_png(plot_time_constants(reference))
     write_atomic(directory / "time_constants.png", lambda p: p.write_bytes(png))
     settings = {"steps_s": list(steps), "repeats": repeats, "model": model_source}
-    load = _load_average()
+    load = load_average()
     shown = {"model": model_source, "fixed steps (ms)": [h * 1e3 for h in steps],
              "adaptive tolerances (rtol)": list(DEFAULT_TOLERANCES),
              "reference": "SciPy Radau, rtol 1e-11, atol 1e-13",
@@ -101,22 +98,12 @@ def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=No
              **calibration_text(coefficients)}
     write_text_atomic(directory / "report.html",
                       render_report(rows, reference, smooth_orders=smooth, settings=shown))
-    manifest = {"torquesim_version": __version__,
-                "created": datetime.now(UTC).isoformat(timespec="seconds"),
-                "command": "compare", "settings": settings,
+    manifest = {**provenance(), "command": "compare", "settings": settings,
                 "reference": {"method": "Radau", "rtol": 1e-11, "atol": 1e-13},
                 "smooth_case_orders": smooth,
                 "calibration_s": coefficients, "load_average_1min": load,
-                "machine": {"python": platform.python_version(),
-                            "platform": platform.platform(), "processor": platform.machine(),
-                            "cpus": os.cpu_count()},
                 "model_toml": model_to_toml(model)}
     write_text_atomic(directory / "manifest.json", json.dumps(manifest, indent=2) + "\n")
     return rows, reference, smooth
 
 
-def _load_average() -> float | None:
-    try:
-        return os.getloadavg()[0]
-    except (AttributeError, OSError):  # pragma: no cover - not on every platform
-        return None
