@@ -20,6 +20,7 @@ from scipy.optimize import least_squares
 
 from ..model.activation import activation
 from ..model.body import body_work_size, joint_accelerations
+from ..model.chain import agonist_level
 from ..model.torque_generator import ce_torque_velocity, torque_angle
 from .objective import PROFILE_SIZE, pack_profile
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
@@ -95,7 +96,8 @@ def quasi_static_activations(model, q, qd, torque, rest_levels):
             need = abs(remaining) + sum(rest_levels[u] * capacity(u, unit, k, i, 0.0)
                                         for u, unit in agonists if rest_levels[u] is not None)
             caps = [capacity(u, unit, k, i, need / len(agonists)) for u, unit in agonists]
-            level = need / sum(caps) if sum(caps) > 0 else 1.0
+            level = agonist_level([lambda a, c=c: a * c for c in caps], need) \
+                if need > 0 and sum(caps) > 0 else (0.0 if need <= 0 else 1.0)
             for u, _unit in agonists:
                 levels[u, i] = level
     return np.clip(levels, 0.0, 1.0)

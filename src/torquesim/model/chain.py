@@ -46,6 +46,7 @@ from .state import StateLayout
 from .torque_generator import (
     ACTIVATION_FLOOR,
     H_ISOMETRIC,
+    K_SE,
     UNIT_ARRAY_SIZE,
     TorqueGeneratorUnit,
     torque_angle,
@@ -627,7 +628,7 @@ def _rest_stretch(unit: Unit, q: float, level: float) -> float:
     k·s = max(a, 0.01)·T_θ(q + d·s)·h(0)."""
     p = unit.parameters.to_array()
     a = max(level, ACTIVATION_FLOOR)
-    k, d = p[10], unit.direction
+    k, d = p[K_SE], unit.direction
 
     def balance(s: float) -> float:
         return k * s - a * torque_angle(q + d * s, p) * p[H_ISOMETRIC]
@@ -638,25 +639,36 @@ def _rest_stretch(unit: Unit, q: float, level: float) -> float:
     return brentq(balance, 0.0, s_max * (1 + 1e-12) + 1e-300, xtol=1e-16, rtol=1e-15)
 
 
-def _agonist_level(units, agonists, q: float, needed: float) -> float:
-    """Common activation of the ``agonists`` whose summed torque is ``needed`` (N·m, > 0)."""
-    if len(agonists) == 1:
-        unit = units[agonists[0]]
-        p = unit.parameters.to_array()
-        s = needed / unit.parameters.se_stiffness
-        return needed / (p[H_ISOMETRIC] * torque_angle(q + unit.direction * s, p))
-
+def agonist_level(torques, needed: float) -> float:
+    """The one activation a shared by a joint's agonists (the units of the needed direction)
+    at which their torques add up to ``needed`` (N·m, > 0): Σ_u torque_u(a) = needed, with
+    ``torques`` one function a → N·m per agonist (non-decreasing in a). A level below the
+    activation floor is the floor; a need above what a = 1 gives returns 1 + the missing
+    fraction (> 1: the joint cannot be held). Used by the static-equilibrium start and by the
+    fit's quasi-static initial guess, the one place a joint's torque is split between units."""
     def surplus(a: float) -> float:
-        return sum(units[i].parameters.se_stiffness * _rest_stretch(units[i], q, a)
-                   for i in agonists) - needed
+        return sum(torque(a) for torque in torques) - needed
 
     if surplus(1.0) < 0.0:
-        return 1.0 + (-surplus(1.0)) / needed  # > 1: reported as "cannot hold"
+        return 1.0 + (-surplus(1.0)) / needed
     if surplus(ACTIVATION_FLOOR) >= 0.0:
         return ACTIVATION_FLOOR
     from scipy.optimize import brentq
 
     return brentq(surplus, ACTIVATION_FLOOR, 1.0, xtol=1e-15, rtol=1e-15)
+
+
+def _agonist_level(units, agonists, q: float, needed: float) -> float:
+    """Common activation of the ``agonists`` (unit indices) holding joint angle ``q`` at rest
+    with their summed SE torque ``needed`` (N·m, > 0). One agonist: closed form (its stretch
+    is needed/k, so a = needed/(h(0)·T_θ(q + d·s))); several: `agonist_level`."""
+    if len(agonists) == 1:
+        unit = units[agonists[0]]
+        p = unit.parameters.to_array()
+        s = needed / unit.parameters.se_stiffness
+        return needed / (p[H_ISOMETRIC] * torque_angle(q + unit.direction * s, p))
+    return agonist_level([lambda a, u=units[i]: u.parameters.se_stiffness
+                          * _rest_stretch(u, q, a) for i in agonists], needed)
 
 
 def pack_activations(profiles, levels) -> np.ndarray:
