@@ -259,18 +259,17 @@ def test_run_study_reports_progress_after_every_run():
 @pytest.mark.slow
 def test_the_verdict_does_not_move_with_noise_in_the_clock():
     """±50 % random noise on every wall-time reading of one measured study (a loaded, shared
-    machine) leaves the cheapest technique and step at every accuracy target unchanged: the
-    ranking is by modelled cost, calibrated on the minimum of many interleaved readings.
-    (The readings are perturbed after one measurement, so that the test does not depend on the
-    load of the machine running it.)"""
+    machine) moves the verdict only between near-equal runs: at every accuracy target the
+    technique and step chosen under noise cost at most 1.5× the quiet choice in the quiet
+    calibration (the tie band, 1.2×, times the error noise leaves in a minimum of 5 readings),
+    and where the quiet choice wins by more than 2× it stays. The ranking is by modelled
+    cost, calibrated on the minimum of interleaved readings; a ranking by raw wall time does
+    not hold this. (The readings are perturbed after one measurement, so that the test does
+    not depend on the load of the machine running it.)"""
     model = ts.default_model()
     rows, _ = run_study(model, steps=(5e-3, 1e-3, 5e-4, 2e-4, 1e-4), tolerances=(1e-5,))
-
-    def winners(table):
-        return [(v["target_deg"], v["winner"]["technique"], v["winner"]["h_s"])
-                for v in verdict(table)]
-
-    quiet = winners(rows)
+    quiet_cost = {(r["technique"], r["h_s"]): r["modelled_cost_s"] for r in rows}
+    quiet = verdict(rows)
     for seed in (1, 2):
         rng = np.random.default_rng(seed)
         noisy = [dict(r) for r in rows]
@@ -279,4 +278,11 @@ def test_the_verdict_does_not_move_with_noise_in_the_clock():
                 readings = tuple(t * rng.uniform(0.5, 1.5) for t in r["wall_times_s"])
                 r.update(wall_times_s=readings, wall_time_s=min(readings))
         calibrate(noisy)
-        assert winners(noisy) == quiet
+        for before, after in zip(quiet, verdict(noisy), strict=True):
+            chosen = (after["winner"]["technique"], after["winner"]["h_s"])
+            best = (before["winner"]["technique"], before["winner"]["h_s"])
+            assert quiet_cost[chosen] <= 1.5 * quiet_cost[best], (before["target_deg"], chosen)
+            margin = min((x for t, x in before["ratios"].items() if t != best[0]),
+                         default=math.inf)
+            if margin > 2.0:
+                assert chosen == best, (before["target_deg"], chosen, best)
