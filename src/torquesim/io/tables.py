@@ -65,23 +65,19 @@ def csv_cell(value) -> str:
     return str(value)
 
 
-def rows_csv(rows, columns) -> str:
-    """Rows (dicts, or sequences in ``columns`` order) as CSV text with a header."""
+def write_rows(path, rows, columns, field: str = "out") -> Path:
+    """Write rows (dicts, or sequences in ``columns`` order) as a CSV table with ``columns``
+    as its header (cells by `csv_cell`), atomically: every table of records torquesim writes
+    (study results and verdict, the sensitivity summary, batch tables, rank correlations)
+    goes through here."""
+    columns = list(columns)
     buf = io.StringIO()
     writer = csv.writer(buf)
     writer.writerow(columns)
     for r in rows:
         cells = [r.get(c) for c in columns] if isinstance(r, dict) else list(r)
         writer.writerow([csv_cell(v) for v in cells])
-    return buf.getvalue()
-
-
-def write_rows(path, rows, columns, field: str = "out") -> Path:
-    """Write rows (dicts or sequences) as a CSV table with ``columns`` as its header,
-    atomically: every table of records torquesim writes (study results and verdict, the
-    sensitivity summary, batch tables, rank correlations) goes through here."""
-    text = rows_csv(rows, list(columns))
-    return write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"), field)
+    return write_text_atomic(path, buf.getvalue(), field)
 
 
 def manifest(result, **extra) -> dict:

@@ -57,14 +57,10 @@ def canonical_path(model: ChainModel, path: str, field: str = "path") -> str:
     """``path`` with a unit alias replaced by the unit's name and the optional leading
     ``units.``/``joints.``/``segments.`` dropped; a `ModelError` (on ``field``) if it names no
     number of ``model``."""
-    get_parameter(model, path, field)
-    parts = _parts(path)
-    units = _unit_names(model)
-    for cut in range(len(parts) - 1, 0, -1):
-        head = ".".join(parts[:cut])
-        if head in units:
-            return ".".join([units[head], *parts[cut:]])
-    return ".".join(parts)
+    kind, owner, rest, _ = _find(model, path, field)
+    if kind == "ramp":
+        return f"{owner}.ramp{rest[0] + 1}.{rest[1]}"
+    return ".".join([owner, *rest] if owner else rest)
 
 
 def _locate(model: ChainModel, path: str, field: str):
@@ -103,37 +99,45 @@ def _locate(model: ChainModel, path: str, field: str):
     raise _not_a_path(model, path, field)
 
 
+def _value(model: ChainModel, kind: str, owner: str, rest: list):
+    """The number `_locate` found (None for a unit's "equilibrium" initial level)."""
+    if kind == "model":
+        return getattr(model, rest[0])
+    if kind == "unit":
+        unit = model.units[model.unit_index(owner)]
+        return unit.activation.initial_level if rest == ["initial_level"] else \
+            getattr(unit.parameters, rest[0])
+    if kind == "ramp":
+        return getattr(model.units[model.unit_index(owner)].activation.ramps[rest[0]],
+                       rest[1])
+    if kind == "joint":
+        return getattr(model.joints[model.joint_index(owner)], rest[0])
+    segment = next(s for s in model.segments if s.name == owner)
+    if kind == "segment":
+        return getattr(segment, rest[0])
+    return getattr(next(ld for ld in segment.loads if ld.name == rest[0]), rest[1])
+
+
+def _find(model: ChainModel, path: str, field: str):
+    """`_locate` of a path that holds a number (an "equilibrium" initial level does not)."""
+    kind, owner, rest = _locate(model, path, field)
+    value = _value(model, kind, owner, rest)
+    if value is None:
+        raise ModelError(field, f"{path!r}: unit {owner} starts from static equilibrium "
+                         "(no initial level to read or change)")
+    return kind, owner, rest, float(value)
+
+
 def get_parameter(model: ChainModel, path: str, field: str = "path") -> float:
     """The number at ``path`` in ``model`` (SI)."""
-    kind, owner, rest = _locate(model, path, field)
-    if kind == "model":
-        value = getattr(model, rest[0])
-    elif kind == "unit":
-        unit = model.units[model.unit_index(owner)]
-        value = unit.activation.initial_level if rest == ["initial_level"] else \
-            getattr(unit.parameters, rest[0])
-        if value is None:
-            raise ModelError(field, f"{path!r}: unit {owner} starts from static equilibrium "
-                             "(no initial level to read or change)")
-    elif kind == "ramp":
-        value = getattr(model.units[model.unit_index(owner)].activation.ramps[rest[0]],
-                        rest[1])
-    elif kind == "joint":
-        value = getattr(model.joints[model.joint_index(owner)], rest[0])
-    elif kind == "segment":
-        value = getattr(next(s for s in model.segments if s.name == owner), rest[0])
-    else:
-        segment = next(s for s in model.segments if s.name == owner)
-        value = getattr(next(ld for ld in segment.loads if ld.name == rest[0]), rest[1])
-    return float(value)
+    return _find(model, path, field)[3]
 
 
 def set_parameter(model: ChainModel, path: str, value: float,
                   field: str = "path") -> ChainModel:
     """``model`` with the number at ``path`` set to ``value`` (SI); the changed model is
     validated, and a value that makes it invalid is a `ModelError` naming ``path``."""
-    get_parameter(model, path, field)  # the path exists and holds a number
-    kind, owner, rest = _locate(model, path, field)
+    kind, owner, rest, _ = _find(model, path, field)
     value = float(value)
     try:
         if kind == "model":

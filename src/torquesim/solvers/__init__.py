@@ -4,7 +4,7 @@ Names are imported on first use (PEP 562): the technique registry (`techniques`)
 without loading Numba.
 """
 
-from importlib import import_module
+from .._lazy import lazy_exports
 
 _EXPORTS = {
     "Coupling": "coupling", "RunCost": "result", "SimulationResult": "result",
@@ -14,16 +14,7 @@ _EXPORTS = {
 }
 
 
-def __getattr__(name: str):
-    if name in _EXPORTS:
-        value = getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted([*globals(), *_EXPORTS])
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)
 
 
 __all__ = ["METHODS", "TECHNIQUES", "Coupling", "RunCost", "SimulationResult", "StabilityReport",

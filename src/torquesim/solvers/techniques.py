@@ -89,14 +89,6 @@ TECHNIQUES: tuple[Technique, ...] = (
 )
 
 
-def technique(name: str) -> Technique:
-    """The registered technique called ``name`` (KeyError if there is none)."""
-    for t in TECHNIQUES:
-        if t.name == name:
-            return t
-    raise KeyError(name)
-
-
 def study_techniques() -> tuple[Technique, ...]:
     """The techniques ``torquesim compare`` runs by default."""
     return tuple(t for t in TECHNIQUES if t.in_study)
