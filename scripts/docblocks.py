@@ -33,7 +33,8 @@ def techniques_block() -> str:
              "in the study |", "|---|---|---|---|---|---|"]
     for t in TECHNIQUES:
         order = "adaptive" if t.order is None else str(t.order)
-        lines.append(f"| `{t.name}` | `{t.method}` | {t.parts} | {order} | {t.implicit} | "
+        # plain text, not code spans: code spans break inside words in narrow table cells
+        lines.append(f"| {t.name} | {t.method} | {t.parts} | {order} | {t.implicit} | "
                      f"{'yes' if t.in_study else 'no'} |")
     return ("Every technique torquesim knows, from its registry "
             "(`torquesim.solvers.techniques`; the order is the declared one, which the tests "
