@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ModelError, check_range
-from .activation import ActivationProfile
+from .activation import ActivationDynamics, ActivationProfile
 from .body import (
     ENDSTOP_HIGH,
     ENDSTOP_LOW,
@@ -42,14 +42,21 @@ from .body import (
     ZERO_OFFSET,
     passive_torque,
 )
-from .state import StateLayout
+from .state import UNIT_STATE_WIDTHS, StateLayout
 from .torque_generator import (
     ACTIVATION_FLOOR,
     H_ISOMETRIC,
     K_SE,
-    UNIT_ARRAY_SIZE,
     TorqueGeneratorUnit,
     torque_angle,
+)
+from .unit_row import (  # noqa: F401  (the packed unit row, read here as chain.UNIT_*)
+    UNIT_ACTIVATION_TIME,
+    UNIT_DEACTIVATION_TIME,
+    UNIT_DIRECTION,
+    UNIT_JOINT,
+    UNIT_ROW_SIZE,
+    UNIT_STATE_OFFSET,
 )
 
 MAX_SEGMENTS = 6
@@ -58,10 +65,6 @@ SEG_INERTIA, SEG_MOMENT, SEG_LENGTH, SEG_GRAVITY = (SEG_INERTIA_COLUMN, SEG_MOME
                                                     SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN)
 SEGMENT_ARRAY_SIZE = 4
 JOINT_ARRAY_SIZE = JOINT_ROW_SIZE  # end stops, zero offset, speed limit (model.body)
-#: Extra columns of the packed unit rows (after the TorqueGeneratorUnit array).
-UNIT_JOINT = UNIT_ARRAY_SIZE
-UNIT_DIRECTION = UNIT_ARRAY_SIZE + 1
-UNIT_ROW_SIZE = UNIT_ARRAY_SIZE + 2
 FLEXOR, EXTENSOR = 1, -1
 #: A joint speed above this many times its fastest unit's ω_max is physically impossible.
 SPEED_LIMIT_FACTOR = 10.0
@@ -224,10 +227,10 @@ class Joint:
             object.__setattr__(self, "coordinate", f"{self.name}_flexion")
         _check_name("coordinate", self.coordinate)
         if self.coordinate == "time" or self.coordinate.startswith(
-                ("torque_", "activation_", "omega_cc_", "theta_cc_")):
+                ("torque_", "activation_", "excitation_", "omega_cc_", "theta_cc_")):
             raise ModelError("coordinate", f"{self.coordinate!r} would clash with another "
                              "output column; allowed: a name other than time and not starting "
-                             "with torque_, activation_, omega_cc_ or theta_cc_")
+                             "with torque_, activation_, excitation_, omega_cc_ or theta_cc_")
 
     def endstop_array(self) -> np.ndarray:
         """[k_p, s_p, q_lo, q_hi] in the layout of `torquesim.model.body.passive_torque`."""
@@ -255,7 +258,12 @@ class Unit:
     parameters : TorqueGeneratorUnit
     activation : ActivationProfile
         ``initial_level=None`` ("equilibrium"): the level is solved so the chain starts at
-        rest (see `ChainModel.initial_state`).
+        rest (see `ChainModel.initial_state`). With ``activation_dynamics`` it is the unit's
+        excitation e(t).
+    activation_dynamics : ActivationDynamics or None
+        None (default, the abstract's model): the activation is the profile, a = e(t). Else
+        a follows e(t) with first-order dynamics and is a state of the unit, starting at the
+        profile's initial level (at rest, a = e).
     """
 
     name: str
@@ -263,6 +271,7 @@ class Unit:
     direction: int
     parameters: TorqueGeneratorUnit
     activation: ActivationProfile
+    activation_dynamics: ActivationDynamics | None = None
 
     def __post_init__(self) -> None:
         _check_name("name", self.name)
@@ -275,6 +284,14 @@ class Unit:
             raise ModelError("parameters", "must be a TorqueGeneratorUnit")
         if not isinstance(self.activation, ActivationProfile):
             raise ModelError("activation", "must be an ActivationProfile")
+        if self.activation_dynamics is not None and \
+                not isinstance(self.activation_dynamics, ActivationDynamics):
+            raise ModelError("activation_dynamics", "must be an ActivationDynamics or None")
+
+    @property
+    def kind(self) -> str:
+        """The unit kind, which fixes its states (`UNIT_STATE_WIDTHS`)."""
+        return "hill" if self.activation_dynamics is None else "hill_with_activation_dynamics"
 
 
 class PackedChain(NamedTuple):
@@ -282,7 +299,8 @@ class PackedChain(NamedTuple):
 
     segments : (n, 4)  A_k, B_k, L_k, g·B_k (see `ChainModel.pack`)
     joints : (n, 6)    end stops, zero offset and speed limit
-    units : (U, 20)    TorqueGeneratorUnit array, then joint index and direction
+    units : (U, 23)    TorqueGeneratorUnit array, then joint index, direction, state offset
+                       and activation time constants (`model.unit_row`)
     activations : (U, P)  packed activation profiles [a_0, n, (t_on, r, level) × n]
     """
 
@@ -389,7 +407,7 @@ class ChainModel:
     @property
     def layout(self) -> StateLayout:
         """Where q, q̇ and each unit's states sit in the state vector."""
-        return StateLayout(self.n_joints, self.n_units)
+        return StateLayout(self.n_joints, tuple(UNIT_STATE_WIDTHS[u.kind] for u in self.units))
 
     def joint_index(self, name: str) -> int:
         """Index of the joint named ``name`` (or with that coordinate name)."""
@@ -425,10 +443,15 @@ class ChainModel:
         return aliases
 
     def state_names(self) -> tuple[str, ...]:
-        """Names of the entries of y: coordinates, their speeds, each unit's CE angle."""
+        """Names of the entries of y: coordinates, their speeds, each unit's CE angle (and
+        activation, for a unit with activation dynamics)."""
+        own = []
+        for unit in self.units:
+            own.append(f"theta_cc_{unit.name}")
+            if unit.activation_dynamics is not None:
+                own.append(f"activation_state_{unit.name}")
         return (*(j.coordinate for j in self.joints),
-                *(f"{j.coordinate}_speed" for j in self.joints),
-                *(f"theta_cc_{u.name}" for u in self.units))
+                *(f"{j.coordinate}_speed" for j in self.joints), *own)
 
     def replace(self, **changes) -> ChainModel:
         """A copy with some fields changed (validated again)."""
@@ -504,6 +527,10 @@ class ChainModel:
             out[i, :UNIT_JOINT] = unit.parameters.to_array()
             out[i, UNIT_JOINT] = self.joint_index(unit.joint)
             out[i, UNIT_DIRECTION] = unit.direction
+            out[i, UNIT_STATE_OFFSET] = self.layout.unit_offset(i)
+            if unit.activation_dynamics is not None:
+                out[i, UNIT_ACTIVATION_TIME] = unit.activation_dynamics.activation_time
+                out[i, UNIT_DEACTIVATION_TIME] = unit.activation_dynamics.deactivation_time
         return out
 
     def pack(self, levels=None) -> PackedChain:
@@ -619,7 +646,13 @@ class ChainModel:
                 levels[i] = level if carrier is None else float(unit.activation.initial_level)
                 torques[i] = unit.parameters.se_stiffness * s
                 theta_cc[i] = q + unit.direction * s
-        state = np.concatenate([q0, np.zeros(n), theta_cc])
+        state = np.zeros(self.state_size)
+        state[:n] = q0
+        layout = self.layout
+        for i in range(nu):
+            state[layout.unit_state(i)] = theta_cc[i]
+            if layout.activation_state(i) is not None:
+                state[layout.activation_state(i)] = levels[i]  # at rest a = e
         return ChainStart(state, levels, torques)
 
 

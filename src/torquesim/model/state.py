@@ -1,9 +1,11 @@
 """The state vector's layout, in one place: y = (q_1…q_n, q̇_1…q̇_n, the units' own states).
 
 Every kernel, result and file reads positions through these names, never through literal
-offsets. A Hill unit (this model) has one state of its own, its CE angle θ_cc (rad); a unit
-kind with more states (activation dynamics, say) changes `UNIT_STATE_WIDTH` and the unit's
-rate, not the kernels' indexing.
+offsets. Each unit kind has its own state width (`UNIT_STATE_WIDTHS`): a Hill unit has one
+state, its CE angle θ_cc (rad); a Hill unit with activation dynamics
+(`ActivationDynamics`) has two, θ_cc and its activation a. A unit's states sit together, in
+unit order, and its packed row records where they start (`UNIT_STATE_OFFSET`), so the compiled
+loops find them without knowing the other units' kinds.
 """
 
 from __future__ import annotations
@@ -12,8 +14,10 @@ from dataclasses import dataclass
 
 from numba import njit
 
-#: States per unit: θ_cc.
-UNIT_STATE_WIDTH = 1
+from .unit_row import UNIT_ACTIVATION_TIME, UNIT_ROW_SIZE, UNIT_STATE_OFFSET
+
+#: States per unit kind: θ_cc; θ_cc and a.
+UNIT_STATE_WIDTHS = {"hill": 1, "hill_with_activation_dynamics": 2}
 
 
 @njit(cache=True, inline="always")
@@ -23,18 +27,30 @@ def unit_states_start(n):
 
 
 @njit(cache=True, inline="always")
-def unit_state(n, u):
-    """Index in y of unit ``u``'s CE angle θ_cc on a chain of ``n`` joints."""
-    return 2 * n + u * UNIT_STATE_WIDTH
+def unit_state(n, units, u):
+    """Index in y of unit ``u``'s CE angle θ_cc on a chain of ``n`` joints (``units``: the
+    flat packed unit rows)."""
+    return 2 * n + int(units[u * UNIT_ROW_SIZE + UNIT_STATE_OFFSET])
+
+
+@njit(cache=True, inline="always")
+def has_activation_state(units, u):
+    """Whether unit ``u`` has activation dynamics: its activation a is then the state after
+    its θ_cc, at ``unit_state(n, units, u) + 1``."""
+    return units[u * UNIT_ROW_SIZE + UNIT_ACTIVATION_TIME] > 0.0
 
 
 @dataclass(frozen=True)
 class StateLayout:
-    """Where each quantity sits in the state vector y of a chain of ``n_joints`` joints and
-    ``n_units`` units (`ChainModel.layout`)."""
+    """Where each quantity sits in the state vector y of a chain of ``n_joints`` joints whose
+    units have ``unit_widths`` states each (`ChainModel.layout`)."""
 
     n_joints: int
-    n_units: int
+    unit_widths: tuple[int, ...]
+
+    @property
+    def n_units(self) -> int:
+        return len(self.unit_widths)
 
     @property
     def angles(self) -> slice:
@@ -48,13 +64,26 @@ class StateLayout:
 
     @property
     def unit_states(self) -> slice:
-        """Every unit's own states (θ_cc, rad), unit by unit."""
+        """Every unit's own states, unit by unit."""
         return slice(2 * self.n_joints, self.size)
+
+    def unit_offset(self, u: int) -> int:
+        """Offset of unit ``u``'s first state from the first unit state."""
+        return sum(self.unit_widths[:u])
 
     def unit_state(self, u: int) -> int:
         """Index of unit ``u``'s θ_cc."""
-        return 2 * self.n_joints + u * UNIT_STATE_WIDTH
+        return 2 * self.n_joints + self.unit_offset(u)
+
+    def activation_state(self, u: int) -> int | None:
+        """Index of unit ``u``'s activation a, or None when a is its profile (no dynamics)."""
+        return self.unit_state(u) + 1 if self.unit_widths[u] > 1 else None
+
+    @property
+    def theta_cc(self) -> list[int]:
+        """Index of every unit's θ_cc, in unit order."""
+        return [self.unit_state(u) for u in range(self.n_units)]
 
     @property
     def size(self) -> int:
-        return 2 * self.n_joints + self.n_units * UNIT_STATE_WIDTH
+        return 2 * self.n_joints + sum(self.unit_widths)

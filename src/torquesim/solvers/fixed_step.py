@@ -22,6 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ..model.activation import implicit_activation
 from ..model.body import (
     ENDSTOP_HIGH,
     ENDSTOP_LOW,
@@ -31,8 +32,14 @@ from ..model.body import (
     joint_accelerations,
     single_segment_acceleration,
 )
-from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
-from ..model.state import unit_state, unit_states_start
+from ..model.state import has_activation_state, unit_state, unit_states_start
+from ..model.unit_row import (
+    UNIT_ACTIVATION_TIME,
+    UNIT_DEACTIVATION_TIME,
+    UNIT_DIRECTION,
+    UNIT_JOINT,
+    UNIT_ROW_SIZE,
+)
 from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     BODY_FIRST,
     COUPLING_SIZE,
@@ -53,10 +60,10 @@ from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
 from .rates import (
     flat_arrays,
     joint_muscle_torques,
-    unit_activation,
+    unit_excitation,
     unit_joint,
     unit_joint_torque,
-    unit_rate,
+    unit_rates,
 )
 from .sdirk import unit_implicit_ce_velocity
 
@@ -98,8 +105,8 @@ def rk4_increment(k1, k2, k3, k4, h):
     return h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
 #: Rows of the scratch array of the partitioned loop (each row as long as the state).
 (_K1, _K2, _K3, _K4, _STAGE, _W1, _W2, _W3, _W4, _TAU, _Q, _TORQUE, _TORQUE0,
- _TORQUE_SLOPE, _Q_SLOPE, _RATE, _OMEGA, _OLD) = range(18)
-_SCRATCH_ROWS = 18
+ _TORQUE_SLOPE, _Q_SLOPE, _RATE, _OMEGA, _OLD, _MUSCLE_STAGE) = range(19)
+_SCRATCH_ROWS = 19
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -164,11 +171,11 @@ def _general_accelerations(y, n, torque, seg, joints, work, dy, row):
 @njit(cache=True, error_model="numpy")
 def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                    general_body=False):
-    """Classical RK4 on the whole state y = (q, q̇, θ_cc) (technique 2).
+    """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
-    Activations are evaluated once per stage time. Each stage seeds the CE root finder with a
-    prediction from the previous step (see `_predict`). ``general_body``: see
+    The activation profiles are evaluated once per stage time. Each stage seeds the CE root
+    finder with a prediction from the previous step (see `_predict`). ``general_body``: see
     `check_body_kind`.
     """
     check_body_kind(seg, general_body)
@@ -185,16 +192,16 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
     now = np.empty((4, nu))
     seen = np.full((4, nu), np.nan)
     seen4_before = np.full(nu, np.nan)
-    levels = np.empty((3, nu))  # activations at t, t + h/2, t + h
+    levels = np.empty((3, nu))  # profile values e(t) at t, t + h/2, t + h
     torque = np.empty(n)
     work = np.empty(body_work_size(n))
     for u in range(nu):
-        levels[0, u] = unit_activation(0.0, profiles, width, u)
+        levels[0, u] = unit_excitation(0.0, profiles, width, u)
     for step in range(n_steps):
         t = step * h
         for u in range(nu):
-            levels[1, u] = unit_activation(t + half, profiles, width, u)
-            levels[2, u] = unit_activation((step + 1) * h, profiles, width, u)
+            levels[1, u] = unit_excitation(t + half, profiles, width, u)
+            levels[2, u] = unit_excitation((step + 1) * h, profiles, width, u)
         for s in range(4):
             if s == 0:
                 for i in range(size):
@@ -207,15 +214,17 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
             for j in range(n):
                 torque[j] = 0.0
             for u in range(nu):
-                x = stage[unit_state(n, u)]
+                i = unit_state(n, units, u)
                 j = unit_joint(units, u)
-                torque[j] += unit_joint_torque(stage[j], x, units, u)
+                torque[j] += unit_joint_torque(stage[j], stage[i], units, u)
                 if s == 0:
                     guess = _predict(seen[3, u], seen4_before[u], seen[0, u])
                 else:
                     guess = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
-                k[s, unit_state(n, u)], now[s, u], tau = unit_rate(stage[j], x, levels[at, u],
-                                                                   guess, units, u)
+                k[s, i], level_rate, now[s, u], tau = unit_rates(stage[j], stage, i,
+                                                                 levels[at, u], guess, units, u)
+                if has_activation_state(units, u):
+                    k[s, i + 1] = level_rate
                 if s == 0:
                     _record_stiffness(stats, t, h / tau, u)
             for j in range(n):
@@ -272,52 +281,57 @@ def _body_rk4(y, n, h, seg, joints, work, b, y_new, general_body):
 
 @njit(cache=True, error_model="numpy")
 def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new):
-    """``substeps`` RK4 steps of the muscle part θ_cc = y[2n:] over [t, t + h] with joint
-    angles q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]); activation is evaluated at every
-    stage time. Result into y_new[2n:].
+    """``substeps`` RK4 steps of the muscle part (the units' states y[2n:]) over [t, t + h]
+    with joint angles q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]); the activation profiles
+    are evaluated at every stage time. Result into y_new[2n:].
 
-    The muscle rates and CE velocities at (t, q_n, θ_cc) (b[_RATE], b[_OMEGA]) were evaluated
+    The units' rates and CE velocities at (t, q_n, y) (b[_RATE], b[_OMEGA]) were evaluated
     by the caller: they are the first stage of the first sub-step. Makes 4·substeps − 1
-    muscle evaluations.
+    muscle evaluations. The stage rows b[_K1…_K4] and b[_MUSCLE_STAGE] are indexed as y, the
+    CE velocities b[_W1…_W4] by unit.
     """
     hs = h / substeps
+    c = unit_states_start(n)
+    size = y.shape[0]
+    stage = b[_MUSCLE_STAGE]
+    for i in range(c, size):
+        y_new[i] = y[i]
     for u in range(nu):
-        y_new[unit_state(n, u)] = y[unit_state(n, u)]
         b[_W4, u] = b[_OMEGA, u]  # the previous sub-step's last stage seeds the next first
     for sub in range(substeps):
         s0 = sub * hs
         for s in range(4):
             if s == 0 and sub == 0:
+                for i in range(c, size):
+                    b[_K1, i] = b[_RATE, i]
                 for u in range(nu):
-                    b[_K1, u] = b[_RATE, u]
                     b[_W1, u] = b[_OMEGA, u]
                 continue
-            ts = t + s0
             lag = rk4_stage_offset(s, hs)  # stage time − sub-step start
+            for i in range(c, size):
+                stage[i] = y_new[i] + lag * b[_K1 + s - 1, i] if s > 0 else y_new[i]
             for u in range(nu):
                 j = unit_joint(units, u)
-                q = y[j] + b[_Q_SLOPE, j] / h * (s0 + lag) if s > 0 else \
-                    y[j] + b[_Q_SLOPE, j] / h * s0
-                x = y_new[unit_state(n, u)]
-                if s > 0:
-                    x += lag * b[_K1 + s - 1, u]
+                i = unit_state(n, units, u)
                 guess = b[_W4, u] if s == 0 else b[_W1 + s - 1, u]
-                at = ts + lag if s > 0 else ts
-                b[_K1 + s, u], b[_W1 + s, u], b[_TAU, u] = unit_rate(
-                    q, x, unit_activation(at, profiles, width, u), guess, units, u)
-        for u in range(nu):
-            y_new[unit_state(n, u)] += rk4_increment(b[_K1, u], b[_K2, u], b[_K3, u], b[_K4, u],
-                                                     hs)
+                b[_K1 + s, i], level_rate, b[_W1 + s, u], b[_TAU, u] = unit_rates(
+                    y[j] + b[_Q_SLOPE, j] / h * (s0 + lag), stage, i,
+                    unit_excitation(t + s0 + lag, profiles, width, u), guess, units, u)
+                if has_activation_state(units, u):
+                    b[_K1 + s, i + 1] = level_rate
+        for i in range(c, size):
+            y_new[i] += rk4_increment(b[_K1, i], b[_K2, i], b[_K3, i], b[_K4, i], hs)
 
 
 @njit(cache=True, error_model="numpy")
 def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new):
-    """``substeps`` steps of the muscle part θ_cc = y[2n:] over [t, t + h] by the L-stable
-    two-stage SDIRK method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h; stiffly
-    accurate), each unit's stage equation solved by
-    `unit_implicit_ce_velocity`. Joint angles
-    q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]). With this the muscle part has no step-size
-    stability limit. Result into y_new[2n:].
+    """``substeps`` steps of the muscle part (the units' states y[2n:]) over [t, t + h] by
+    the L-stable two-stage SDIRK method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h;
+    stiffly accurate), each unit's stage equation solved by
+    `unit_implicit_ce_velocity` (and, with activation dynamics, its activation's
+    stage equation first, in closed form by `implicit_activation`: the activation does not
+    depend on θ_cc). Joint angles q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]). With this the
+    muscle part has no step-size stability limit. Result into y_new[2n:].
 
     The explicit CE velocities at the step start (b[_OMEGA]) seed Newton's method. Each unit
     residual evaluation is counted in ``stats[NEWTON_ITERATIONS]``, each stage equation in
@@ -331,26 +345,40 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
         o = u * UNIT_ROW_SIZE
         j = int(units[o + UNIT_JOINT])
         d = units[o + UNIT_DIRECTION]
+        dynamic = has_activation_state(units, u)
         rate = b[_Q_SLOPE, j] / h
-        x = y[unit_state(n, u)]
+        i = unit_state(n, units, u)
+        x = y[i]
+        a = y[i + 1] if dynamic else 0.0
         guess = b[_OMEGA, u]
         for sub in range(substeps):
             s = sub * hs
             known = x  # stage s: θ_cc = θ_cc,n + Σ_{r<s} a_sr·h·(dθ_cc/dt)_r + γh·(dθ_cc/dt)_s
+            known_a = a
             w = guess
+            level_rate = 0.0
             for stage in range(2):
                 if stage == 1:
                     known = x + d * ((hs - gh) * w)  # a_21·h = (1 − γ)h
+                    known_a = a + (hs - gh) * level_rate
                 at = s + (gh if stage == 0 else hs)  # c·h: γh, then h
                 q = y[j] + rate * at
-                w, count = unit_implicit_ce_velocity(d * (known - q), known, d, gh,
-                                                     unit_activation(t + at, profiles, width,
-                                                                     u),
+                level = unit_excitation(t + at, profiles, width, u)
+                if dynamic:  # the stage activation, then its rate
+                    stage_a = implicit_activation(known_a, level, gh,
+                                                  units[o + UNIT_ACTIVATION_TIME],
+                                                  units[o + UNIT_DEACTIVATION_TIME])
+                    level_rate = (stage_a - known_a) / gh
+                    level = stage_a
+                w, count = unit_implicit_ce_velocity(d * (known - q), known, d, gh, level,
                                                      units, w, o)
                 solves += count
             x = known + d * (gh * w)  # stiffly accurate: b = the last row of A
+            a = known_a + gh * level_rate
             guess = w
-        y_new[unit_state(n, u)] = x
+        y_new[i] = x
+        if dynamic:
+            y_new[i + 1] = a
     stats[NEWTON_ITERATIONS] += solves
     stats[IMPLICIT_SOLVES] += 2 * substeps * nu
 
@@ -365,6 +393,7 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
     The CE velocities at the step start (b[_OMEGA]) seed the first stage's root finder.
     """
     size = y.shape[0]
+    stage = b[_STAGE]
     for s in range(4):
         if s == 0:
             for i in range(size):
@@ -377,12 +406,14 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
         for j in range(n):
             b[_TORQUE, j] = 0.0
         for u in range(nu):
-            x = b[_STAGE, unit_state(n, u)]
+            i = unit_state(n, units, u)
             j = unit_joint(units, u)
-            b[_TORQUE, j] += unit_joint_torque(b[_STAGE, j], x, units, u)
+            b[_TORQUE, j] += unit_joint_torque(stage[j], stage[i], units, u)
             guess = b[_OMEGA, u] if s == 0 else b[_W1 + s - 1, u]
-            b[_K1 + s, unit_state(n, u)], b[_W1 + s, u], b[_TAU, u] = unit_rate(
-                b[_STAGE, j], x, unit_activation(at, profiles, width, u), guess, units, u)
+            b[_K1 + s, i], level_rate, b[_W1 + s, u], b[_TAU, u] = unit_rates(
+                stage[j], stage, i, unit_excitation(at, profiles, width, u), guess, units, u)
+            if has_activation_state(units, u):
+                b[_K1 + s, i + 1] = level_rate
         for j in range(n):
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body:
@@ -432,18 +463,20 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     torque_prev = np.empty(n)
     for u in range(nu):
         b[_OMEGA, u] = np.nan
-    joint_muscle_torques(y, y, c, units, nu, torque_prev, n)
+    joint_muscle_torques(y, y, units, nu, torque_prev, n)
     hm = h / substeps
     for step in range(n_steps):
         t = step * h
         for j in range(n):
             b[_TORQUE0, j] = 0.0
         for u in range(nu):
-            x = y[unit_state(n, u)]
+            i = unit_state(n, units, u)
             j = unit_joint(units, u)
-            b[_TORQUE0, j] += unit_joint_torque(y[j], x, units, u)
-            b[_RATE, u], b[_OMEGA, u], tau = unit_rate(
-                y[j], x, unit_activation(t, profiles, width, u), b[_OMEGA, u], units, u)
+            b[_TORQUE0, j] += unit_joint_torque(y[j], y[i], units, u)
+            b[_RATE, i], level_rate, b[_OMEGA, u], tau = unit_rates(
+                y[j], y, i, unit_excitation(t, profiles, width, u), b[_OMEGA, u], units, u)
+            if has_activation_state(units, u):
+                b[_RATE, i + 1] = level_rate
             _record_stiffness(stats, t, hm / tau, u)
         stats[NFEV_MUSCLE] += 1
         if stage_exchange is not None:
@@ -472,7 +505,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                                  sdirk_muscles, rk4_muscles, b, stats, y1)
                     for j in range(n):
                         b[_Q, j] = y[j] + b[_Q_SLOPE, j]
-                    joint_muscle_torques(b[_Q], y1, c, units, nu, b[_TORQUE], n)
+                    joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
                     for j in range(n):
                         b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
                     _body_rk4(y, n, h, seg, joints, work, b, y1, general_body)
@@ -486,7 +519,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                 stats[NFEV_BODY] += 4
                 stats[SWEEPS] += 1
                 # Later sweeps see the other part's end-of-step values (waveform relaxation).
-                joint_muscle_torques(y1, y1, c, units, nu, b[_TORQUE], n)
+                joint_muscle_torques(y1, y1, units, nu, b[_TORQUE], n)
                 # Coupling-error indicator (no extra evaluation): the jump between the joint
                 # torque the body integrated with at the step end and the torque the muscles
                 # give there, and between the angle the muscles integrated with and the body's.

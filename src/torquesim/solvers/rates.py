@@ -1,7 +1,8 @@
 """Right-hand sides of the two parts of a chain model, compiled (docs/model.md §1–§2).
 
-State y = (q, q̇, θ_cc of every unit). Body part: (q, q̇) with input the joint muscle torques;
-muscle part: θ_cc with input the joint angles q. Unit u acts on joint j with direction d
+State y = (q, q̇, every unit's own states; `torquesim.model.state`). Body part: (q, q̇) with
+input the joint muscle torques; muscle part: the units' states (θ_cc, and a with activation
+dynamics) with input the joint angles q. Unit u acts on joint j with direction d
 (+1 flexor, −1 extensor):
 
     SE stretch s_u = d·(θ_cc,u − q_j),   unit torque T_u = k·max(s_u, 0),
@@ -23,11 +24,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..model.activation import activation
+from ..model.activation import activation, activation_rate, activation_time_constant
 from ..model.body import body_work_size, joint_accelerations, single_segment_acceleration
-from ..model.chain import UNIT_DIRECTION, UNIT_JOINT, UNIT_ROW_SIZE
-from ..model.state import unit_state, unit_states_start
+from ..model.state import has_activation_state, unit_state
 from ..model.torque_generator import unit_ce_velocity_and_time_constant, unit_torque
+from ..model.unit_row import (
+    UNIT_ACTIVATION_TIME,
+    UNIT_DEACTIVATION_TIME,
+    UNIT_DIRECTION,
+    UNIT_JOINT,
+    UNIT_ROW_SIZE,
+)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -52,20 +59,41 @@ def unit_joint_torque(q_joint, theta_cc, units, u):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_rate(q_joint, theta_cc, level, guess, units, u):
-    """(dθ_cc/dt, ω_cc, τ) of unit u at joint angle ``q_joint``, CE angle ``theta_cc`` and
-    activation ``level``: its CE angle rate (rad/s), CE velocity (rad/s) and time constant
-    (s, the stability guard's input, from the root finder's last slope)."""
-    o = u * UNIT_ROW_SIZE
-    w, tau = unit_ce_velocity_and_time_constant(unit_stretch(q_joint, theta_cc, units, u),
-                                                theta_cc, level, units, guess, o)
-    return units[o + UNIT_DIRECTION] * w, w, tau
+def unit_excitation(t, profiles, width, u):
+    """e_u(t), the value of unit u's packed profile row at time t (s): its activation when it
+    has no activation dynamics, its excitation (the input of its dynamics) when it has."""
+    return activation(t, profiles, u * width)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_activation(t, profiles, width, u):
-    """a_u(t) of unit u's packed profile row."""
-    return activation(t, profiles, u * width)
+def unit_rates(q_joint, y, i, excitation, guess, units, u):
+    """The rates of unit u whose states start at y[i] (θ_cc; then a, with activation
+    dynamics), at joint angle ``q_joint`` and profile value ``excitation``:
+    (dθ_cc/dt, da/dt, ω_cc, τ) in rad/s, 1/s, rad/s, s.
+
+    This is the one place a unit's activation is read: its profile value e(t) without
+    activation dynamics, its state y[i + 1] with (da/dt is then `activation_rate`, else 0 and
+    not a state). τ is the unit's shortest time constant (the stability guard's input): its
+    CE's, from the root finder's last slope, or with dynamics `activation_time_constant` if
+    that is shorter."""
+    o = u * UNIT_ROW_SIZE
+    theta_cc = y[i]
+    dynamic = has_activation_state(units, u)
+    level = y[i + 1] if dynamic else excitation
+    w, tau = unit_ce_velocity_and_time_constant(unit_stretch(q_joint, theta_cc, units, u),
+                                                theta_cc, level, units, guess, o)
+    level_rate = 0.0
+    if dynamic:
+        t_act, t_deact = units[o + UNIT_ACTIVATION_TIME], units[o + UNIT_DEACTIVATION_TIME]
+        level_rate = activation_rate(excitation, level, t_act, t_deact)
+        tau = min(tau, activation_time_constant(excitation, level, t_act, t_deact))
+    return units[o + UNIT_DIRECTION] * w, level_rate, w, tau
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unit_level(excitation, y, i, units, u):
+    """The activation unit u's CE sees (as `unit_rates` reads it), for outputs."""
+    return y[i + 1] if has_activation_state(units, u) else excitation
 
 
 @njit(cache=True, error_model="numpy")
@@ -77,14 +105,15 @@ def flat_arrays(seg, joints, units, profiles):
 
 
 @njit(cache=True, error_model="numpy")
-def joint_muscle_torques(q, x, x_off, units, n_units, out, n_joints):
-    """τ_j = Σ_{units on j} d·k·max(s, 0), N·m, into out[:n_joints]; θ_cc,u = x[x_off + u].
-    (Outside the step loops; the loops sum `unit_joint_torque` themselves.)"""
+def joint_muscle_torques(q, x, units, n_units, out, n_joints):
+    """τ_j = Σ_{units on j} d·k·max(s, 0), N·m, into out[:n_joints], at joint angles q and
+    unit states from the state vector x (θ_cc,u = x[unit_state(n, units, u)]). (Outside the
+    step loops; the loops sum `unit_joint_torque` themselves.)"""
     for j in range(n_joints):
         out[j] = 0.0
     for u in range(n_units):
         j = unit_joint(units, u)
-        out[j] += unit_joint_torque(q[j], x[x_off + u], units, u)
+        out[j] += unit_joint_torque(q[j], x[unit_state(n_joints, units, u)], units, u)
 
 
 @njit(cache=True, error_model="numpy")
@@ -94,7 +123,7 @@ def chain_derivative(t, y, seg, joints, units, profiles):
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     dy = np.empty(y.shape[0])
     torque = np.empty(n)
-    joint_muscle_torques(y, y, unit_states_start(n), units, nu, torque, n)
+    joint_muscle_torques(y, y, units, nu, torque, n)
     for k in range(n):
         dy[k] = y[n + k]
     if n == 1:
@@ -105,6 +134,10 @@ def chain_derivative(t, y, seg, joints, units, profiles):
         for k in range(n):  # a loop: a slice assignment compiles a shape check (1.6 s cold)
             dy[n + k] = work[n * n + k]
     for u in range(nu):
-        dy[unit_state(n, u)] = unit_rate(y[unit_joint(units, u)], y[unit_state(n, u)],
-                                  unit_activation(t, profiles, width, u), np.nan, units, u)[0]
+        i = unit_state(n, units, u)
+        dy[i], level_rate, _, _ = unit_rates(y[unit_joint(units, u)], y, i,
+                                             unit_excitation(t, profiles, width, u), np.nan,
+                                             units, u)
+        if has_activation_state(units, u):
+            dy[i + 1] = level_rate
     return dy

@@ -10,7 +10,7 @@ from numba import njit
 
 from ..model.body import JOINT_ROW_SIZE, passive_torque
 from ..model.chain import UNIT_ROW_SIZE, ChainModel, PackedChain
-from ..model.state import unit_state, unit_states_start
+from ..model.state import unit_state
 from ..model.torque_generator import (
     ACTIVATION_FLOOR,
     unit_ce_velocity,
@@ -21,36 +21,41 @@ from .fixed_step import RK4_STABILITY_LIMIT
 from .rates import (
     flat_arrays,
     joint_muscle_torques,
-    unit_activation,
+    unit_excitation,
     unit_joint,
+    unit_level,
     unit_stretch,
 )
 
 
 @njit(cache=True)
 def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joint_out):
-    """Per row of ``states`` = (q, q̇, θ_cc): fill ``unit_out`` (rows × U × 4) with each unit's
-    torque T (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s) and time constant τ (s);
+    """Per row of ``states`` (y): fill ``unit_out`` (rows × U × 5) with each unit's torque T
+    (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s), CE time constant τ (s) and
+    profile value e(t);
     and ``joint_out`` (rows × n × 2) with each joint's net muscle torque Σ d·T and end-stop
     torque T_p (N·m). Takes the 2-D arrays of `PackedChain`."""
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     torque = np.empty(n)
     for i in range(time.shape[0]):
         y = states[i]
-        joint_muscle_torques(y, y, unit_states_start(n), units, nu, torque, n)
+        joint_muscle_torques(y, y, units, nu, torque, n)
         for j in range(n):
             joint_out[i, j, 0] = torque[j]
             joint_out[i, j, 1] = passive_torque(y[j], joints, j * JOINT_ROW_SIZE)
         for u in range(nu):
             o = u * UNIT_ROW_SIZE
-            theta_cc = y[unit_state(n, u)]
+            k = unit_state(n, units, u)
+            theta_cc = y[k]
             stretch = unit_stretch(y[unit_joint(units, u)], theta_cc, units, u)
-            level = max(unit_activation(time[i], profiles, width, u), ACTIVATION_FLOOR)
+            excitation = unit_excitation(time[i], profiles, width, u)
+            level = max(unit_level(excitation, y, k, units, u), ACTIVATION_FLOOR)
             w = unit_ce_velocity(stretch, theta_cc, level, units, np.nan, o)
             unit_out[i, u, 0] = unit_torque(stretch, units, o)
             unit_out[i, u, 1] = level
             unit_out[i, u, 2] = w
             unit_out[i, u, 3] = unit_time_constant(w, theta_cc, level, units, o)
+            unit_out[i, u, 4] = excitation
 
 
 @dataclass(frozen=True)
@@ -169,7 +174,7 @@ class SimulationResult:
     @property
     def theta_cc(self) -> np.ndarray:
         """CE angles of the units, rad, shape (n, units)."""
-        return self.states[:, self.model.layout.unit_states]
+        return self.states[:, self.model.layout.theta_cc]
 
     @property
     def theta(self) -> np.ndarray:
@@ -187,7 +192,7 @@ class SimulationResult:
 
     def _derived(self) -> tuple[np.ndarray, np.ndarray]:
         n, nu = self.model.n_joints, self.model.n_units
-        unit_out = np.empty((self.time.size, nu, 4))
+        unit_out = np.empty((self.time.size, nu, 5))
         joint_out = np.empty((self.time.size, n, 2))
         derived_quantities(self.time, self.states, *self.packed, unit_out, joint_out)
         return unit_out, joint_out
@@ -198,7 +203,8 @@ class SimulationResult:
         ``theta_cc_<unit>``; per unit ``torque_<unit>``; per joint ``torque_net_<joint>``
         (muscles, flexion positive) and ``torque_passive_<joint>`` (end stops); per unit
         ``activation_<unit>`` (floored at 0.01) and ``omega_cc_<unit>`` (concentric
-        positive)."""
+        positive). A unit with activation dynamics adds its state ``activation_state_<unit>``
+        after its θ_cc and its profile value ``excitation_<unit>``."""
         unit_out, joint_out = self._derived()
         m = self.model
         cols = {"time": self.time}
@@ -213,6 +219,9 @@ class SimulationResult:
             cols[f"activation_{unit.name}"] = unit_out[:, u, 1]
         for u, unit in enumerate(m.units):
             cols[f"omega_cc_{unit.name}"] = unit_out[:, u, 2]
+        for unit in m.units:
+            if unit.activation_dynamics is not None:
+                cols[f"excitation_{unit.name}"] = unit_out[:, m.unit_index(unit.name), 4]
         return cols
 
     def time_constants(self) -> dict[str, np.ndarray]:

@@ -63,5 +63,5 @@ def smooth_chain_case() -> tuple[ChainModel, np.ndarray]:
     y0 = start.state.copy()
     for i, unit in enumerate(held.units):
         if unit.direction == -1:
-            y0[2 * held.n_joints + i] -= 0.005
+            y0[held.layout.unit_state(i)] -= 0.005
     return held.replace(units=units), y0
