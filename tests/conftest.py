@@ -80,3 +80,30 @@ def measured_order(case, method, coupling, steps) -> float:
         r = ts.simulate(model, method, h, initial_state=y0, coupling=coupling)
         errors.append(np.max(np.abs(r.q[::int(round(0.01 / h))] - ref.q)))
     return linregress(np.log(steps), np.log(errors)).slope
+
+
+def activation_dynamics_case(extensor_dynamics: bool = True):
+    """The smooth elbow case (`torquesim.study.smooth_case`) with first-order activation
+    dynamics on the flexor (and, by default, the extensor): (chain model, initial state).
+
+    The excitations stay constant (flexor 0.6, extensor 0.3); the flexor's activation starts
+    at 0.65 and decays towards 0.6 (deactivation branch), the extensor's at 0.29 and rises
+    towards 0.3 (activation branch), so neither crosses its excitation, both CEs keep their
+    direction (flexor shortening, extensor lengthening) and the motion is smooth."""
+    import dataclasses
+
+    from torquesim.study import smooth_case
+
+    elbow, y_plain = smooth_case()
+    plain = elbow.to_chain()
+    model = plain.replace(units=tuple(
+        dataclasses.replace(u, activation_dynamics=ts.ActivationDynamics())
+        if u.direction == 1 or extensor_dynamics else u for u in plain.units))
+    layout = model.layout
+    y0 = np.zeros(layout.size)
+    y0[:2] = y_plain[:2]
+    for u, start in enumerate((0.65, 0.29)):
+        y0[layout.unit_state(u)] = y_plain[plain.layout.unit_state(u)]
+        if layout.activation_state(u) is not None:
+            y0[layout.activation_state(u)] = start
+    return model, y0

@@ -1,7 +1,7 @@
 """The technique registry: every registered fixed-step technique is tested by being
-registered. Its order of accuracy is measured on the smooth cases (the elbow and the
-shoulder–elbow chain) against the order it declares, and the registry agrees with the
-command line, `simulate` and the coupling rule."""
+registered. Its order of accuracy is measured on the smooth cases (the elbow, the
+shoulder–elbow chain and the elbow with activation dynamics) against the order it declares,
+and the registry agrees with the command line, `simulate` and the coupling rule."""
 
 import pytest
 
@@ -17,15 +17,20 @@ from torquesim.solvers.techniques import (
 )
 from torquesim.study import smooth_case, smooth_chain_case
 
-from .conftest import measured_order
+from .conftest import activation_dynamics_case, measured_order
 
 #: Steps of the measurement, coarse for 4th order (finer ones reach the reference's
 #: round-off), finer for the low orders (to be in the asymptotic range).
 STEPS = {("elbow", True): [2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4],
          ("elbow", False): [1.25e-3, 6.25e-4, 3.125e-4, 1.5625e-4],
+         ("activation dynamics", True): [2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4],
+         ("activation dynamics", False): [1.25e-3, 6.25e-4, 3.125e-4, 1.5625e-4],
          ("chain", True): [1e-3, 5e-4, 2.5e-4, 1.25e-4],
          ("chain", False): [5e-4, 2.5e-4, 1.25e-4, 6.25e-5]}
-CASES = {"elbow": smooth_case, "chain": smooth_chain_case}
+#: The elbow, the shoulder–elbow chain, and the elbow whose units have activation dynamics
+#: (a unit kind with a state of its own, run by the same loops).
+CASES = {"elbow": smooth_case, "chain": smooth_chain_case,
+         "activation dynamics": activation_dynamics_case}
 
 
 @pytest.mark.slow

@@ -24,7 +24,8 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
 _EXPORTS = {
     "ModelError": "errors", "SimulationError": "errors",
     "load_model": "io", "read_table": "io", "save_model": "io", "save_result": "io",
-    "ActivationProfile": "model", "BodyParameters": "model", "ChainModel": "model",
+    "ActivationDynamics": "model", "ActivationProfile": "model", "BodyParameters": "model",
+    "ChainModel": "model",
     "ElbowModel": "model", "Joint": "model", "PointLoad": "model", "Ramp": "model",
     "Segment": "model", "TorqueGeneratorUnit": "model", "Unit": "model",
     "default_model": "model",
@@ -36,6 +37,7 @@ __getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)
 
 
 __all__ = [
+    "ActivationDynamics",
     "ActivationProfile",
     "BodyParameters",
     "ChainModel",

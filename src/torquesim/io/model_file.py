@@ -29,6 +29,9 @@ A chain model (docs/model-files.md)::
     [units.activation]
     initial_level = "equilibrium"   # or a number in [0, 1]
     ramps = [{ delay = 0.1, duration = 0.3, level = 0.5 }, ...]
+    [units.activation_dynamics]     # optional: the profile is then the excitation
+    activation_time = 0.015         # s
+    deactivation_time = 0.050       # s
 
 Every key is checked: an unknown or missing key, a wrong type or a value out of range is a
 `ModelError` naming it. The elbow files of torquesim 0.1 (``[body]``,
@@ -42,7 +45,7 @@ import tomllib
 from pathlib import Path
 
 from ..errors import ModelError
-from ..model.activation import ActivationProfile, Ramp
+from ..model.activation import ActivationDynamics, ActivationProfile, Ramp
 from ..model.body import BodyParameters
 from ..model.chain import ChainModel, Joint, PointLoad, Segment, Unit
 from ..model.elbow import ElbowModel
@@ -80,12 +83,16 @@ FIELD_DOCS = {
     "eccentric_slope_ratio": "eccentric/concentric slope of T_omega at 0 (Yeadon 2006: 4.3). "
                              "(0, 100]",
     "ce_damping": "N m s/rad, CE parallel damping beta (Millard 2013; 0 = abstract). [0, 1e4]",
+    "activation_time": "s, tau_act of da/dt (Thelen 2003: 0.015). (0, 1]",
+    "deactivation_time": "s, tau_deact of da/dt (Thelen 2003: 0.050). (0, 1]",
 }
 SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads")
 LOAD_KEYS = ("name", "mass", "distance", "inertia")
 JOINT_KEYS = ("name", "initial_angle", "endstop_torque", "endstop_angle_scale",
               "endstop_lower_angle", "endstop_upper_angle", "coordinate")
-UNIT_KEYS = ("name", "joint", "direction", "activation", *TorqueGeneratorUnit.field_names())
+UNIT_KEYS = ("name", "joint", "direction", "activation", "activation_dynamics",
+             *TorqueGeneratorUnit.field_names())
+DYNAMICS_KEYS = ("activation_time", "deactivation_time")
 TOP_KEYS = ("name", "duration", "gravity", "base_angle", "notes", "segments", "joints", "units")
 LEGACY_KEYS = ("initial_angle", "duration", "body", "flexor", "extensor")
 REQUIRED_UNIT_KEYS = tuple(k for k in TorqueGeneratorUnit.field_names()
@@ -244,10 +251,16 @@ def _unit(i: int, table: dict) -> Unit:
                          if k in params or k in REQUIRED_UNIT_KEYS})
     activation = _profile(f"{prefix}.activation",
                           _table(f"{prefix}.activation", table["activation"]), None)
+    dynamics = None
+    if "activation_dynamics" in table:
+        key = f"{prefix}.activation_dynamics"
+        defaults = ActivationDynamics()
+        dynamics = _build(ActivationDynamics, key, _table(key, table["activation_dynamics"]),
+                          {k: getattr(defaults, k) for k in DYNAMICS_KEYS})
     try:
         return Unit(_text(f"{prefix}.name", table["name"]), _text(f"{prefix}.joint",
                                                                  table["joint"]),
-                    DIRECTIONS[direction], parameters, activation)
+                    DIRECTIONS[direction], parameters, activation, dynamics)
     except ModelError as exc:
         raise exc.under(prefix) from None
 
@@ -357,6 +370,11 @@ def model_to_toml(model) -> str:
         lines += [f"    {{ delay = {_value(r.delay)}, duration = {_value(r.duration)}, "
                   f"level = {_value(r.level)} }}," for r in profile.ramps]
         lines.append("]")
+        if unit.activation_dynamics is not None:
+            lines += ["[units.activation_dynamics]",
+                      "# first-order activation dynamics (Thelen 2003): the profile above is the "
+                      "excitation"]
+            lines += [_line(k, getattr(unit.activation_dynamics, k)) for k in DYNAMICS_KEYS]
     return "\n".join(lines) + "\n"
 
 

@@ -1,12 +1,13 @@
 """The model: planar chains of segments, torque generator units, activation profiles."""
 
-from .activation import ActivationProfile, Ramp
+from .activation import ActivationDynamics, ActivationProfile, Ramp
 from .body import BodyParameters
 from .chain import ChainModel, ChainStart, Joint, PackedChain, PointLoad, Segment, Unit, as_chain
 from .elbow import ElbowModel, InitialState, default_model
 from .torque_generator import TorqueGeneratorUnit
 
 __all__ = [
+    "ActivationDynamics",
     "ActivationProfile",
     "BodyParameters",
     "ChainModel",

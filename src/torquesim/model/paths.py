@@ -9,6 +9,8 @@ A path is dot-separated:
                                 ``elbow_flexor.se_stiffness`` (units by name or alias:
                                 ``flexor``, ``elbow.extensor``; see `ChainModel.unit_aliases`)
 ``UNIT.initial_level``          a unit's initial activation (when it has one)
+``UNIT.activation_time``,       τ_act, τ_deact of a unit with activation dynamics (s)
+``UNIT.deactivation_time``
 ``UNIT.rampN.delay|duration|level``  the N-th activation ramp of a unit (N from 1)
 ``JOINT.FIELD``                 a joint's field, e.g. ``elbow.initial_angle`` (rad)
 ``SEGMENT.FIELD``               a segment's field, e.g. ``forearm_hand.mass`` (kg)
@@ -27,14 +29,16 @@ import re
 from dataclasses import fields, replace
 
 from ..errors import ModelError
-from .activation import Ramp
+from .activation import ActivationDynamics, Ramp
 from .chain import ChainModel
 from .torque_generator import TorqueGeneratorUnit
 
 RAMP_FIELDS = tuple(f.name for f in fields(Ramp))
+DYNAMICS_FIELDS = tuple(f.name for f in fields(ActivationDynamics))
 _RAMP = re.compile(r"ramp(\d+)")
-HELP = ("UNIT.FIELD, UNIT.initial_level, UNIT.rampN.delay|duration|level, JOINT.FIELD, "
-        "SEGMENT.FIELD, SEGMENT.LOAD.mass|distance|inertia, gravity, base_angle")
+HELP = ("UNIT.FIELD, UNIT.initial_level, UNIT.rampN.delay|duration|level, "
+        "UNIT.activation_time|deactivation_time, JOINT.FIELD, SEGMENT.FIELD, "
+        "SEGMENT.LOAD.mass|distance|inertia, gravity, base_angle")
 
 
 def _parts(path: str) -> list[str]:
@@ -76,6 +80,11 @@ def _locate(model: ChainModel, path: str, field: str):
             unit = model.units[model.unit_index(units[head])]
             if len(rest) == 1 and rest[0] in unit_fields | {"initial_level"}:
                 return "unit", unit.name, rest
+            if len(rest) == 1 and rest[0] in DYNAMICS_FIELDS:
+                if unit.activation_dynamics is None:
+                    raise ModelError(field, f"{path!r}: unit {unit.name} has no activation "
+                                     "dynamics; allowed: a unit with [units.activation_dynamics]")
+                return "dynamics", unit.name, rest
             found = _RAMP.fullmatch(rest[0]) if len(rest) == 2 else None
             if found and rest[1] in RAMP_FIELDS:
                 n = int(found.group(1))
@@ -110,6 +119,8 @@ def _value(model: ChainModel, kind: str, owner: str, rest: list):
     if kind == "ramp":
         return getattr(model.units[model.unit_index(owner)].activation.ramps[rest[0]],
                        rest[1])
+    if kind == "dynamics":
+        return getattr(model.units[model.unit_index(owner)].activation_dynamics, rest[0])
     if kind == "joint":
         return getattr(model.joints[model.joint_index(owner)], rest[0])
     segment = next(s for s in model.segments if s.name == owner)
@@ -149,6 +160,10 @@ def set_parameter(model: ChainModel, path: str, value: float,
                                                                     initial_level=value))
             return model.replace_unit(owner, parameters=replace(unit.parameters,
                                                                 **{rest[0]: value}))
+        if kind == "dynamics":
+            dynamics = model.units[model.unit_index(owner)].activation_dynamics
+            return model.replace_unit(owner, activation_dynamics=replace(dynamics,
+                                                                         **{rest[0]: value}))
         if kind == "ramp":
             profile = model.units[model.unit_index(owner)].activation
             ramps = list(profile.ramps)
