@@ -128,7 +128,8 @@ class FitProblem:
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
         self.step_loop = fs.step_loop_switches(self.method == "monolithic", base.n_joints,
-                                               self.coupling.to_array())
+                                               self.coupling.to_array(),
+                                               base.has_activation_dynamics)
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
         self.target_angles = np.ascontiguousarray(self.target.angles)

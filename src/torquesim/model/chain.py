@@ -401,6 +401,11 @@ class ChainModel:
         return len(self.units)
 
     @property
+    def has_activation_dynamics(self) -> bool:
+        """Whether some unit has activation dynamics (a state of its activation)."""
+        return any(u.activation_dynamics is not None for u in self.units)
+
+    @property
     def state_size(self) -> int:
         return self.layout.size
 

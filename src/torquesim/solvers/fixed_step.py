@@ -58,6 +58,7 @@ from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     TOLERANCE,
 )
 from .rates import (
+    check_unit_kinds,
     flat_arrays,
     joint_muscle_torques,
     unit_excitation,
@@ -170,7 +171,7 @@ def _general_accelerations(y, n, torque, seg, joints, work, dy, row):
 
 @njit(cache=True, error_model="numpy")
 def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
-                   general_body=False):
+                   general_body=False, dynamics=None):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
@@ -221,10 +222,11 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                     guess = _predict(seen[3, u], seen4_before[u], seen[0, u])
                 else:
                     guess = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
-                k[s, i], level_rate, now[s, u], tau = unit_rates(stage[j], stage, i,
-                                                                 levels[at, u], guess, units, u)
-                if has_activation_state(units, u):
-                    k[s, i + 1] = level_rate
+                k[s, i], level_rate, now[s, u], tau = unit_rates(
+                    stage[j], stage, i, levels[at, u], guess, units, u, dynamics)
+                if dynamics is not None:
+                    if has_activation_state(units, u):
+                        k[s, i + 1] = level_rate
                 if s == 0:
                     _record_stiffness(stats, t, h / tau, u)
             for j in range(n):
@@ -280,7 +282,7 @@ def _body_rk4(y, n, h, seg, joints, work, b, y_new, general_body):
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new):
+def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dynamics):
     """``substeps`` RK4 steps of the muscle part (the units' states y[2n:]) over [t, t + h]
     with joint angles q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]); the activation profiles
     are evaluated at every stage time. Result into y_new[2n:].
@@ -316,15 +318,18 @@ def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new):
                 guess = b[_W4, u] if s == 0 else b[_W1 + s - 1, u]
                 b[_K1 + s, i], level_rate, b[_W1 + s, u], b[_TAU, u] = unit_rates(
                     y[j] + b[_Q_SLOPE, j] / h * (s0 + lag), stage, i,
-                    unit_excitation(t + s0 + lag, profiles, width, u), guess, units, u)
-                if has_activation_state(units, u):
-                    b[_K1 + s, i + 1] = level_rate
+                    unit_excitation(t + s0 + lag, profiles, width, u), guess, units, u,
+                    dynamics)
+                if dynamics is not None:
+                    if has_activation_state(units, u):
+                        b[_K1 + s, i + 1] = level_rate
         for i in range(c, size):
             y_new[i] += rk4_increment(b[_K1, i], b[_K2, i], b[_K3, i], b[_K4, i], hs)
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new):
+def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new,
+                   dynamics):
     """``substeps`` steps of the muscle part (the units' states y[2n:]) over [t, t + h] by
     the L-stable two-stage SDIRK method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h;
     stiffly accurate), each unit's stage equation solved by
@@ -345,7 +350,9 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
         o = u * UNIT_ROW_SIZE
         j = int(units[o + UNIT_JOINT])
         d = units[o + UNIT_DIRECTION]
-        dynamic = has_activation_state(units, u)
+        dynamic = False
+        if dynamics is not None:
+            dynamic = has_activation_state(units, u)
         rate = b[_Q_SLOPE, j] / h
         i = unit_state(n, units, u)
         x = y[i]
@@ -385,7 +392,7 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
 
 @njit(cache=True, error_model="numpy")
 def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                         y_new, general_body):
+                         y_new, general_body, dynamics):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
     The body stage sees the torque of the muscle stage state and the muscle stage sees the
@@ -411,9 +418,11 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
             b[_TORQUE, j] += unit_joint_torque(stage[j], stage[i], units, u)
             guess = b[_OMEGA, u] if s == 0 else b[_W1 + s - 1, u]
             b[_K1 + s, i], level_rate, b[_W1 + s, u], b[_TAU, u] = unit_rates(
-                stage[j], stage, i, unit_excitation(at, profiles, width, u), guess, units, u)
-            if has_activation_state(units, u):
-                b[_K1 + s, i + 1] = level_rate
+                stage[j], stage, i, unit_excitation(at, profiles, width, u), guess, units, u,
+                dynamics)
+            if dynamics is not None:
+                if has_activation_state(units, u):
+                    b[_K1 + s, i + 1] = level_rate
         for j in range(n):
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body:
@@ -427,7 +436,8 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
 
 @njit(cache=True, error_model="numpy")
 def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                    general_body, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange):
+                    general_body, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
+                    dynamics):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -451,6 +461,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     sweeps = int(coupling[ITERATIONS])
     tol = coupling[TOLERANCE]
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
+    check_unit_kinds(units, nu, dynamics)
     size = y0.shape[0]
     c = unit_states_start(n)
     y = y0.copy()
@@ -474,14 +485,16 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
             j = unit_joint(units, u)
             b[_TORQUE0, j] += unit_joint_torque(y[j], y[i], units, u)
             b[_RATE, i], level_rate, b[_OMEGA, u], tau = unit_rates(
-                y[j], y, i, unit_excitation(t, profiles, width, u), b[_OMEGA, u], units, u)
-            if has_activation_state(units, u):
-                b[_RATE, i + 1] = level_rate
+                y[j], y, i, unit_excitation(t, profiles, width, u), b[_OMEGA, u], units, u,
+                dynamics)
+            if dynamics is not None:
+                if has_activation_state(units, u):
+                    b[_RATE, i + 1] = level_rate
             _record_stiffness(stats, t, hm / tau, u)
         stats[NFEV_MUSCLE] += 1
         if stage_exchange is not None:
             _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                                 y1, general_body)
+                                 y1, general_body, dynamics)
             stats[NFEV_BODY] += 4
             stats[NFEV_MUSCLE] += 4
             stats[SWEEPS] += 1
@@ -502,7 +515,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                     b[_OLD, i] = y1[i]
                 if order == MUSCLES_FIRST:
                     _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
-                                 sdirk_muscles, rk4_muscles, b, stats, y1)
+                                 sdirk_muscles, rk4_muscles, b, stats, y1, dynamics)
                     for j in range(n):
                         b[_Q, j] = y[j] + b[_Q_SLOPE, j]
                     joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
@@ -515,7 +528,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                         for j in range(n):
                             b[_Q_SLOPE, j] = y1[j] - y[j]
                     _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
-                                 sdirk_muscles, rk4_muscles, b, stats, y1)
+                                 sdirk_muscles, rk4_muscles, b, stats, y1, dynamics)
                 stats[NFEV_BODY] += 4
                 stats[SWEEPS] += 1
                 # Later sweeps see the other part's end-of-step values (waveform relaxation).
@@ -559,23 +572,27 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
 
 @njit(cache=True, error_model="numpy")
 def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b, stats,
-                 y_new):
+                 y_new, dynamics):
     """Advance the muscle part over one body step with implicit SDIRK2 (``sdirk`` True) or
     explicit RK4 (``rk4`` True); the other is None and not compiled."""
     if sdirk is not None:
-        _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new)
+        _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new,
+                       dynamics)
     if rk4 is not None:
         stats[NFEV_MUSCLE] += 4 * substeps - 1
-        _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new)
+        _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dynamics)
 
 
-def step_loop_switches(monolithic: bool, n_segments: int, coupling) -> tuple:
+def step_loop_switches(monolithic: bool, n_segments: int, coupling,
+                       dynamics: bool = False) -> tuple:
     """The switches of `run_step_loop` for the monolithic (else partitioned, under the packed
-    ``coupling``) technique on a chain of ``n_segments``.
+    ``coupling``) technique on a chain of ``n_segments`` whose units have activation
+    dynamics or not (``dynamics``: any unit has; `ChainModel.has_activation_dynamics`).
 
-    Eight values, True or None, in four pairs of which one is True: (monolithic, one segment),
+    Nine values, True or None, in four pairs of which one is True: (monolithic, one segment),
     (monolithic, chain), (partitioned, one segment), (partitioned, chain); SDIRK2 or RK4
-    muscles; exchange at every stage or at the step ends. None is a type of its own to Numba,
+    muscles; exchange at every stage or at the step ends; then the activation-state switch
+    (`check_unit_kinds`). None is a type of its own to Numba,
     so a branch ``if switch is not None`` on a None switch is removed when compiling, and a run
     compiles only its own code (a fit one loop and one muscle solver, not all of them). The
     muscle and exchange pairs matter only to the partitioned loop."""
@@ -587,28 +604,32 @@ def step_loop_switches(monolithic: bool, n_segments: int, coupling) -> tuple:
     stage = not monolithic and int(coupling[ORDER]) == EVERY_STAGE
     return (on(monolithic and not chain), on(monolithic and chain),
             on(not monolithic and not chain), on(not monolithic and chain),
-            on(sdirk), on(not sdirk), on(stage), on(not stage))
+            on(sdirk), on(not sdirk), on(stage), on(not stage), on(dynamics))
 
 
 @njit(cache=True, error_model="numpy")
 def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned_chain,
-                  sdirk_muscles, rk4_muscles, stage_exchange, end_exchange, y0, h, n_steps,
-                  seg, joints, units, profiles, coupling, out, stats):
+                  sdirk_muscles, rk4_muscles, stage_exchange, end_exchange, dynamics, y0, h,
+                  n_steps, seg, joints, units, profiles, coupling, out, stats):
     """Run the step loop that the switches (`step_loop_switches`) choose: `rk4_monolithic` or
     `rk4_partitioned`, for one segment or a chain, and in the partitioned loop its muscle
     solver and exchange. Only the chosen code is compiled. (A dispatcher passed as an argument
     would choose as well, but Numba's disk cache misses such compilations in every new
     process; an integer made literal compiles every branch once before it specialises.)"""
     if monolithic_one is not None:
-        rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats)
+        rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
+                       dynamics=dynamics)  # general_body left out: its branch not compiled
     if monolithic_chain is not None:
-        rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats, True)
+        rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats, True,
+                       dynamics)
     if partitioned_one is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                        False, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange)
+                        False, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
+                        dynamics)
     if partitioned_chain is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                        True, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange)
+                        True, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
+                        dynamics)
 
 
 def new_stats() -> np.ndarray:

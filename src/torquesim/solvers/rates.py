@@ -66,28 +66,43 @@ def unit_excitation(t, profiles, width, u):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_rates(q_joint, y, i, excitation, guess, units, u):
+def unit_rates(q_joint, y, i, excitation, guess, units, u, dynamics):
     """The rates of unit u whose states start at y[i] (θ_cc; then a, with activation
     dynamics), at joint angle ``q_joint`` and profile value ``excitation``:
     (dθ_cc/dt, da/dt, ω_cc, τ) in rad/s, 1/s, rad/s, s.
 
     This is the one place a unit's activation is read: its profile value e(t) without
     activation dynamics, its state y[i + 1] with (da/dt is then `activation_rate`, else 0 and
-    not a state). τ is the unit's shortest time constant (the stability guard's input): its
-    CE's, from the root finder's last slope, or with dynamics `activation_time_constant` if
-    that is shorter."""
+    not a state). ``dynamics``: True when some unit of the model has activation dynamics,
+    None when none has (a compile-time constant: the activation-state code is then not
+    compiled, `check_unit_kinds`). τ is the unit's shortest time constant (the stability
+    guard's input): its CE's, from the root finder's last slope, or with dynamics
+    `activation_time_constant` if that is shorter."""
     o = u * UNIT_ROW_SIZE
     theta_cc = y[i]
-    dynamic = has_activation_state(units, u)
-    level = y[i + 1] if dynamic else excitation
+    level = excitation
+    if dynamics is not None:
+        if has_activation_state(units, u):
+            level = y[i + 1]
     w, tau = unit_ce_velocity_and_time_constant(unit_stretch(q_joint, theta_cc, units, u),
                                                 theta_cc, level, units, guess, o)
     level_rate = 0.0
-    if dynamic:
-        t_act, t_deact = units[o + UNIT_ACTIVATION_TIME], units[o + UNIT_DEACTIVATION_TIME]
-        level_rate = activation_rate(excitation, level, t_act, t_deact)
-        tau = min(tau, activation_time_constant(excitation, level, t_act, t_deact))
+    if dynamics is not None:
+        if has_activation_state(units, u):
+            t_act, t_deact = units[o + UNIT_ACTIVATION_TIME], units[o + UNIT_DEACTIVATION_TIME]
+            level_rate = activation_rate(excitation, level, t_act, t_deact)
+            tau = min(tau, activation_time_constant(excitation, level, t_act, t_deact))
     return units[o + UNIT_DIRECTION] * w, level_rate, w, tau
+
+
+@njit(cache=True, error_model="numpy")
+def check_unit_kinds(units, n_units, dynamics):
+    """Raise unless ``dynamics`` (True or None, see `unit_rates`) matches the flat packed
+    ``units``: None with a unit that has activation dynamics would ignore its state."""
+    if dynamics is None:
+        for u in range(n_units):
+            if has_activation_state(units, u):
+                raise ValueError("a unit has activation dynamics: the loop needs dynamics=True")
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -137,7 +152,7 @@ def chain_derivative(t, y, seg, joints, units, profiles):
         i = unit_state(n, units, u)
         dy[i], level_rate, _, _ = unit_rates(y[unit_joint(units, u)], y, i,
                                              unit_excitation(t, profiles, width, u), np.nan,
-                                             units, u)
+                                             units, u, True)
         if has_activation_state(units, u):
             dy[i + 1] = level_rate
     return dy
