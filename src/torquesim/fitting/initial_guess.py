@@ -43,7 +43,7 @@ def required_torques(model, target, spacing: float = GRID):
         k = names.index(joint)
         q[k], qd[k], qdd[k] = spline(t), spline.derivative(1)(t), spline.derivative(2)(t)
     seg, joints = model.segment_array(), model.joint_array().ravel()
-    work = np.zeros(body_work_size(n))
+    work = np.zeros(body_work_size(n, seg))
     acc = slice(n * n, n * n + n)
     torque = np.empty_like(q)
     for i in range(t.size):

@@ -127,7 +127,7 @@ class FitProblem:
                          "monolithic": Coupling()}[self.method]
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_loop = fs.step_loop_switches(self.method == "monolithic", base.n_joints,
+        self.step_loop = fs.step_loop_switches(self.method == "monolithic", base.n_coordinates,
                                                self.coupling.to_array(),
                                                base.has_activation_dynamics)
         self.times = np.ascontiguousarray(self.target.elapsed)

@@ -48,6 +48,7 @@ from ..errors import ModelError
 from ..model.activation import ActivationDynamics, ActivationProfile, Ramp
 from ..model.body import BodyParameters
 from ..model.chain import ChainModel, Joint, PointLoad, Segment, Unit
+from ..model.contact import GroundContact, Point
 from ..model.elbow import ElbowModel
 from ..model.torque_generator import TorqueGeneratorUnit
 from .atomic import write_text_atomic
@@ -84,16 +85,29 @@ FIELD_DOCS = {
                              "(0, 100]",
     "ce_damping": "N m s/rad, CE parallel damping beta (Millard 2013; 0 = abstract). [0, 1e4]",
     "activation_time": "s, tau_act of da/dt (Thelen 2003: 0.015). (0, 1]",
+    "base": "fixed (a pivot at the origin) or free (stands on its contacts)",
+    "parent_distance": "m, where its joint sits along the parent's axis. [-10, 10]",
+    "distance": "m, along the segment axis from its proximal joint",
+    "offset": "m, perpendicular to the axis (+: forwards when hanging)",
+    "stiffness": "N/m^n, k of k*depth^n*(1 + c*depth_rate). (0, 1e9]",
+    "exponent": "n (1.5: Hertz). [1, 3]",
+    "damping": "s/m, c (Hunt-Crossley). [0, 100]",
+    "friction": "mu of the regularised Coulomb friction. [0, 5]",
+    "slip_speed": "m/s, v_s of the friction regularisation. (0, 1]",
     "deactivation_time": "s, tau_deact of da/dt (Thelen 2003: 0.050). (0, 1]",
 }
-SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads")
+SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads",
+                "parent", "parent_distance")
+POINT_KEYS = ("name", "segment", "distance", "offset")
+CONTACT_KEYS = ("point", "stiffness", "exponent", "damping", "friction", "slip_speed")
 LOAD_KEYS = ("name", "mass", "distance", "inertia")
 JOINT_KEYS = ("name", "initial_angle", "endstop_torque", "endstop_angle_scale",
               "endstop_lower_angle", "endstop_upper_angle", "coordinate")
 UNIT_KEYS = ("name", "joint", "direction", "activation", "activation_dynamics",
              *TorqueGeneratorUnit.field_names())
 DYNAMICS_KEYS = ("activation_time", "deactivation_time")
-TOP_KEYS = ("name", "duration", "gravity", "base_angle", "notes", "segments", "joints", "units")
+TOP_KEYS = ("name", "duration", "gravity", "base_angle", "notes", "base", "segments", "joints",
+            "units", "points", "contacts")
 LEGACY_KEYS = ("initial_angle", "duration", "body", "flexor", "extensor")
 REQUIRED_UNIT_KEYS = tuple(k for k in TorqueGeneratorUnit.field_names()
                            if k not in ("eccentric_slope_ratio", "ce_damping"))
@@ -215,12 +229,38 @@ def _segment(i: int, table: dict) -> Segment:
                                    _number(f"{where}.inertia", load.get("inertia", 0.0))))
         except ModelError as exc:
             raise exc.under(where) from None
+    where = table.get("parent_distance")
     try:
         return Segment(_text(f"{prefix}.name", table["name"]),
                        _number(f"{prefix}.mass", table["mass"]),
                        _number(f"{prefix}.com_distance", table["com_distance"]),
                        _number(f"{prefix}.inertia_about_joint", table["inertia_about_joint"]),
-                       _number(f"{prefix}.length", table.get("length", 0.0)), tuple(loads))
+                       _number(f"{prefix}.length", table.get("length", 0.0)), tuple(loads),
+                       _text(f"{prefix}.parent", table.get("parent", "")),
+                       None if where is None else _number(f"{prefix}.parent_distance", where))
+    except ModelError as exc:
+        raise exc.under(prefix) from None
+
+
+def _point(i: int, table: dict) -> Point:
+    prefix = f"points[{i}]"
+    _check_keys(prefix, table, POINT_KEYS, ("name", "segment", "distance"))
+    try:
+        return Point(_text(f"{prefix}.name", table["name"]),
+                     _text(f"{prefix}.segment", table["segment"]),
+                     _number(f"{prefix}.distance", table["distance"]),
+                     _number(f"{prefix}.offset", table.get("offset", 0.0)))
+    except ModelError as exc:
+        raise exc.under(prefix) from None
+
+
+def _contact(i: int, table: dict) -> GroundContact:
+    prefix = f"contacts[{i}]"
+    _check_keys(prefix, table, CONTACT_KEYS, ("point",))
+    values = {key: (_text if key == "point" else _number)(f"{prefix}.{key}", value)
+              for key, value in table.items()}
+    try:
+        return GroundContact(**values)
     except ModelError as exc:
         raise exc.under(prefix) from None
 
@@ -276,17 +316,26 @@ def model_from_dict(data: dict) -> ChainModel:
         _check_keys("", data, TOP_KEYS, (key,))  # in file order: report the first problem
         parts[key] = [build(i, t) for i, t in enumerate(_array_of_tables(key, data[key]))]
     segments, joints, units = parts["segments"], parts["joints"], parts["units"]
+    for key, build in (("points", _point), ("contacts", _contact)):
+        parts[key] = [build(i, t) for i, t in enumerate(_array_of_tables(key,
+                                                                         data.get(key, [])))]
     notes = data.get("notes", [])
     if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
         raise ModelError("notes", "must be an array of strings")
     kwargs = {key: _number(key, data[key]) for key in ("duration", "gravity", "base_angle")
               if key in data}
+    if "base" in data:
+        kwargs["base"] = _text("base", data["base"])
     model = ChainModel(name=_text("name", data.get("name", "model")), segments=tuple(segments),
-                       joints=tuple(joints), units=tuple(units), notes=tuple(notes), **kwargs)
-    for i, table in enumerate(data["segments"][:-1]):  # a joint hangs from its end
-        if "length" not in table:
-            raise ModelError(f"segments[{i}].length", "is missing: the distance to the next "
-                             "joint, m; allowed [0, 10] (only the last segment may omit it)")
+                       joints=tuple(joints), units=tuple(units), notes=tuple(notes),
+                       points=tuple(parts["points"]), contacts=tuple(parts["contacts"]),
+                       **kwargs)
+    for k, p in enumerate(model.parents):  # a joint at the default place needs that place
+        if p >= 0 and segments[k].parent_distance is None and "length" not in data[
+                "segments"][p]:
+            raise ModelError(f"segments[{p}].length", "is missing: the distance to the next "
+                             "joint, m; allowed [0, 10] (only a segment whose children give "
+                             "their parent_distance may omit it)")
     return model
 
 
@@ -340,6 +389,8 @@ def model_to_toml(model) -> str:
     lines += [f"# {note}" for note in m.notes]
     lines += [f"name = {_value(m.name)}", _line("duration", m.duration),
               _line("gravity", m.gravity), _line("base_angle", m.base_angle)]
+    if m.base != "fixed":
+        lines.append(f"base = {_value(m.base)}  # {FIELD_DOCS['base']}")
     if m.notes:
         lines.append("notes = [" + ", ".join(_value(n) for n in m.notes) + "]")
     for seg in m.segments:
@@ -349,6 +400,10 @@ def model_to_toml(model) -> str:
                           f"{_value(ld.distance)}, inertia = {_value(ld.inertia)} }}"
                           for ld in seg.loads)
         lines.append(f"loads = [{loads}]  # point loads on the segment axis (kg, m, kg m^2)")
+        if seg.parent:
+            lines.append(f"parent = {_value(seg.parent)}")
+        if seg.parent_distance is not None:
+            lines.append(_line("parent_distance", seg.parent_distance))
     for joint in m.joints:
         lines += ["", "[[joints]]", f"name = {_value(joint.name)}",
                   _line("initial_angle", joint.initial_angle)
@@ -375,6 +430,13 @@ def model_to_toml(model) -> str:
                       "# first-order activation dynamics (Thelen 2003): the profile above is the "
                       "excitation"]
             lines += [_line(k, getattr(unit.activation_dynamics, k)) for k in DYNAMICS_KEYS]
+    for point in m.points:
+        lines += ["", "[[points]]", f"name = {_value(point.name)}",
+                  f"segment = {_value(point.segment)}", _line("distance", point.distance),
+                  _line("offset", point.offset)]
+    for contact in m.contacts:
+        lines += ["", "[[contacts]]", f"point = {_value(contact.point)}"]
+        lines += [_line(k, getattr(contact, k)) for k in CONTACT_KEYS[1:]]
     return "\n".join(lines) + "\n"
 
 

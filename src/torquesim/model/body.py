@@ -1,7 +1,8 @@
-"""The body: rigid segments in a planar open chain hanging from a fixed pivot (docs/model.md
-§1 and §7): the elbow's parameters (`BodyParameters`), the joints' end stops, and the chain's
-equations of motion M(q)·q̈ = τ + T_p(q) − h(q, q̇) written once (`joint_accelerations`), with
-the one-segment case as a division (`single_segment_acceleration`), the abstract's Eq. 1
+"""The body: rigid segments in a planar tree, on a fixed pivot or free against the ground
+(docs/model.md §1, §7 and §9): the elbow's parameters (`BodyParameters`), the joints' end
+stops, and the equations of motion M(q)·q̈ = τ + T_p(q) + Jᵀ·F − h(q, q̇) written once for
+both bases (`joint_accelerations`), with the one-segment fixed case as a division
+(`single_segment_acceleration`), the abstract's Eq. 1
 
     I_E · dω/dt = T_net + T_p(θ) − (m_t·g·l1 + m_db·g·l2)·sin θ.
 
@@ -14,9 +15,17 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields
 
+import numpy as np
 from numba import njit
 
 from ..errors import ModelError, check_range
+from .contact import (
+    CONTACT_DISTANCE,
+    CONTACT_OFFSET,
+    CONTACT_SEGMENT,
+    contact_force,
+    contact_stiffness,
+)
 
 # Layout of a packed end-stop array: the first columns of a chain joint's row
 # (torquesim.model.chain).
@@ -132,14 +141,17 @@ ZERO_OFFSET = ENDSTOP_HIGH + 1
 #: Column of a packed joint row holding the largest physically possible joint speed, rad/s.
 SPEED_LIMIT = ZERO_OFFSET + 1
 JOINT_ROW_SIZE = SPEED_LIMIT + 1
-#: Columns of the packed segment array (torquesim.model.chain.ChainModel.segment_array).
-SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN = range(4)
+#: Columns of a packed segment row (torquesim.model.chain.ChainModel.segment_array): A_k, B_k,
+#: g·B_k, the parent's index (−1: the base); in row 0 only, the number of segments, the total
+#: mass and g times it; from SEG_LEVER_COLUMN on, row a holds Λ_ab for every segment b.
+(SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_GRAVITY_COLUMN, SEG_PARENT_COLUMN,
+ SEG_COUNT_COLUMN, SEG_MASS_COLUMN, SEG_WEIGHT_COLUMN, SEG_LEVER_COLUMN) = range(8)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def single_segment_acceleration(q, muscle_torque, seg, joints):
-    """q̈ of a one-segment chain, rad/s²: M is the scalar A_1, so `joint_accelerations`
-    reduces to one division, docs/model.md's
+    """q̈ of a one-segment chain on a fixed base, rad/s²: M is the scalar A_1, so
+    `joint_accelerations` reduces to one division, docs/model.md's
 
         I_E·dω/dt = T_net + T_p(θ) − G·sin θ      (abstract Eq. 1 with end stops)
 
@@ -151,56 +163,147 @@ def single_segment_acceleration(q, muscle_torque, seg, joints):
 
 
 @njit(cache=True, error_model="numpy")
-def body_work_size(n):
-    """Length of the scratch array `joint_accelerations` needs for n segments."""
+def body_work_size(n, seg):
+    """Length of the scratch array `joint_accelerations` needs for n coordinates and the
+    contacts of the packed body ``seg``."""
+    return n * n + 4 * n + 4 * (seg.shape[0] - int(seg[0, SEG_COUNT_COLUMN]))
+
+
+@njit(cache=True, error_model="numpy")
+def contacts_start(n):
+    """Where `joint_accelerations` leaves each contact's (F_x, F_y, x, y) in its scratch
+    array, for n coordinates: N, N, m, m, contact after contact."""
     return n * n + 4 * n
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def joint_accelerations(y, n, muscle_torque, seg, joints, work):
-    """q̈ of a planar open chain (docs/model.md §1), rad/s², into work[n²:n²+n]; q = y[:n],
-    q̇ = y[n:2n]:
+    """Accelerations of the n coordinates of a planar tree of segments (docs/model.md §1, §7,
+    §9), into work[n²:n²+n]; coordinates y[:n], their speeds y[n:2n].
 
-        M(φ)·φ̈ + c(φ, φ̇) + g(φ) = Q,    φ_k = Σ_{i≤k}(offset_i + q_i)
+    The coordinates are the joint angles q_k (rad), preceded on a free base by the position
+    (x, y) of the root segment's proximal point (m); the root's q is then its absolute angle
+    and carries no muscle torque. The equations are written once, for both bases, in the
+    absolute angles φ_k = φ_parent(k) + offset_k + q_k:
 
-    in absolute angles φ, with M_kk = A_k, M_jk = L_j·B_k·cos(φ_j − φ_k) (j < k),
-    c_j = Σ_{k≠j} D_jk·sin(φ_j − φ_k)·φ̇_k² (D_jk = L_min(j,k)·B_max(j,k)),
-    g_j = g·B_j·sin φ_j, and the generalized forces Q_j = τ_j − τ_{j+1} of the joint torques
-    τ_j = muscle_torque_j + T_p(q_j) (end stops); then q̈_k = φ̈_k − φ̈_{k−1}. Solved by an
-    LDLᵀ factorization of M (symmetric positive definite).
+        M·ẍ + c = Q,    X = (x, y, φ_1…φ_n) on a free base, (φ_1…φ_n) on a fixed one
 
-    ``seg``: (n, 4) segment array of `ChainModel.segment_array`; ``joints``: the flat
-    joint rows (end stops, zero offset); ``work``: flat scratch of n² + 4n, which holds q̈ at
-    the end (no output array: the solvers' step loops pay for every array argument).
+    with, for segments a and b where a is an ancestor of b (Λ_ab: the distance along a from
+    its proximal joint to where the branch leading to b is attached; 0 for unrelated
+    segments),
+
+        M_aa = A_a,  M_ab = Λ_ab·B_b·cos(φ_a − φ_b),   c_a = Σ_b D_ab·sin(φ_a − φ_b)·φ̇_b²,
+        D_ab = D_ba = Λ_ab·B_b,                        gravity Q_a −= g·B_a·sin φ_a,
+
+    and on a free base M_xx = M_yy = m (total mass), M_xa = B_a·cos φ_a, M_ya = B_a·sin φ_a,
+    c_x = −Σ B_a·φ̇_a²·sin φ_a, c_y = Σ B_a·φ̇_a²·cos φ_a, Q_y −= m·g (A_a, B_a: inertia and
+    first moment about a's proximal joint of a and everything distal to it). Joint torques
+    τ_k = muscle_torque_k + T_p(q_k) act between segment k and its parent: Q_k += τ_k,
+    Q_parent −= τ_k. A contact force F at a point P of segment k (`contact_force`) adds
+    Jᵀ·F: F_x, F_y to Q_x, Q_y, Λ_sk·n(φ_s)·F for every ancestor s and (d·n(φ_k) − e·u(φ_k))·F
+    for k itself (u = (sin φ, −cos φ) the segment axis, n = (cos φ, sin φ), d and e the
+    point's distance and offset). Solved by an LDLᵀ factorization of M (symmetric positive
+    definite); then q̈_k = φ̈_k − φ̈_parent(k).
+
+    ``seg``: the packed segment rows, then the contact rows (`ChainModel.segment_array`);
+    ``joints``: the flat joint rows of the n coordinates (end stops, zero offset); ``work``:
+    flat scratch of `body_work_size`, which holds the accelerations at the end, and from
+    `contacts_start` on each contact's force and point (no output array: the solvers' step
+    loops pay for every array argument).
     """
+    n_seg = int(seg[0, SEG_COUNT_COLUMN])
+    nb = n - n_seg  # 2 on a free base, else 0
     rhs = n * n
     sine = rhs + n
     cosine = sine + n
     speed = cosine + n
-    phi = 0.0
-    phid = 0.0
-    for k in range(n):
-        o = k * JOINT_ROW_SIZE
-        phi += joints[o + ZERO_OFFSET] + y[k]
-        phid += y[n + k]
-        work[sine + k] = math.sin(phi)
-        work[cosine + k] = math.cos(phi)
-        work[speed + k] = phid
-        work[rhs + k] = muscle_torque[k] + passive_torque(y[k], joints, o)
-    for j in range(n - 1):  # Q_j = τ_j − τ_{j+1}
-        work[rhs + j] -= work[rhs + j + 1]
-    for j in range(n):  # gravity, and the diagonal of M
-        work[rhs + j] -= seg[j, SEG_GRAVITY_COLUMN] * work[sine + j]
-        work[j * n + j] = seg[j, SEG_INERTIA_COLUMN]
-    for j in range(n):  # each pair j < k once: M_kj, and c_j, c_k (sin is antisymmetric)
-        for k in range(j + 1, n):
-            d_jk = seg[j, SEG_LENGTH_COLUMN] * seg[k, SEG_MOMENT_COLUMN]
-            # sin and cos of φ_j − φ_k from those of φ_j and φ_k: 2n trig calls, not n²
-            sin_jk = work[sine + j] * work[cosine + k] - work[cosine + j] * work[sine + k]
-            work[k * n + j] = d_jk * (work[cosine + j] * work[cosine + k]
-                                      + work[sine + j] * work[sine + k])
-            work[rhs + j] -= d_jk * sin_jk * work[speed + k] * work[speed + k]
-            work[rhs + k] += d_jk * sin_jk * work[speed + j] * work[speed + j]
+    for i in range(n * n):
+        work[i] = 0.0
+    for k in range(n_seg):
+        i = nb + k
+        o = i * JOINT_ROW_SIZE
+        p = int(seg[k, SEG_PARENT_COLUMN])
+        phi = joints[o + ZERO_OFFSET] + y[i]
+        phid = y[n + i]
+        if p >= 0:
+            phi += work[sine + nb + p]  # holds φ_p until every segment's φ is known
+            phid += work[speed + nb + p]
+        work[sine + i] = phi
+        work[speed + i] = phid
+        work[rhs + i] = muscle_torque[i] + passive_torque(y[i], joints, o)
+    for k in range(n_seg):
+        i = nb + k
+        phi = work[sine + i]
+        work[sine + i] = math.sin(phi)
+        work[cosine + i] = math.cos(phi)
+    for k in range(n_seg):  # each joint torque's reaction on the parent (its children later)
+        p = int(seg[k, SEG_PARENT_COLUMN])
+        if p >= 0:
+            work[rhs + nb + p] -= work[rhs + nb + k]
+    for a in range(n_seg):  # gravity, and the diagonal of M
+        i = nb + a
+        work[rhs + i] -= seg[a, SEG_GRAVITY_COLUMN] * work[sine + i]
+        work[i * n + i] = seg[a, SEG_INERTIA_COLUMN]
+    for a in range(n_seg):  # each related pair a < b once: M_ba, and c_a, c_b
+        i = nb + a
+        for b in range(a + 1, n_seg):
+            lever = seg[a, SEG_LEVER_COLUMN + b]
+            if lever == 0.0:
+                continue
+            j = nb + b
+            d_ab = lever * seg[b, SEG_MOMENT_COLUMN]
+            # sin and cos of φ_a − φ_b from those of φ_a and φ_b: 2n trig calls, not n²
+            sin_ab = work[sine + i] * work[cosine + j] - work[cosine + i] * work[sine + j]
+            work[j * n + i] = d_ab * (work[cosine + i] * work[cosine + j]
+                                      + work[sine + i] * work[sine + j])
+            work[rhs + i] -= d_ab * sin_ab * work[speed + j] * work[speed + j]
+            work[rhs + j] += d_ab * sin_ab * work[speed + i] * work[speed + i]
+    if nb == 2:  # the free base's rows
+        work[0] = seg[0, SEG_MASS_COLUMN]
+        work[n + 1] = seg[0, SEG_MASS_COLUMN]
+        work[rhs] = 0.0
+        work[rhs + 1] = -seg[0, SEG_WEIGHT_COLUMN]
+        for a in range(n_seg):
+            i = 2 + a
+            moment = seg[a, SEG_MOMENT_COLUMN]
+            work[i * n] = moment * work[cosine + i]
+            work[i * n + 1] = moment * work[sine + i]
+            squared = work[speed + i] * work[speed + i]
+            work[rhs] += moment * squared * work[sine + i]
+            work[rhs + 1] -= moment * squared * work[cosine + i]
+        for c in range(n_seg, seg.shape[0]):  # ground contacts
+            k = int(seg[c, CONTACT_SEGMENT])
+            i = 2 + k
+            d = seg[c, CONTACT_DISTANCE]
+            e = seg[c, CONTACT_OFFSET]
+            # the point: base + Σ_ancestors Λ_sk·u(φ_s) + d·u(φ_k) + e·n(φ_k)
+            px = y[0] + d * work[sine + i] + e * work[cosine + i]
+            py = y[1] - d * work[cosine + i] + e * work[sine + i]
+            vx = y[n] + work[speed + i] * (d * work[cosine + i] - e * work[sine + i])
+            vy = y[n + 1] + work[speed + i] * (d * work[sine + i] + e * work[cosine + i])
+            s = int(seg[k, SEG_PARENT_COLUMN])
+            while s >= 0:
+                lever = seg[s, SEG_LEVER_COLUMN + k]
+                px += lever * work[sine + 2 + s]
+                py -= lever * work[cosine + 2 + s]
+                vx += lever * work[speed + 2 + s] * work[cosine + 2 + s]
+                vy += lever * work[speed + 2 + s] * work[sine + 2 + s]
+                s = int(seg[s, SEG_PARENT_COLUMN])
+            fx, fy = contact_force(py, vy, vx, seg, c)
+            o = speed + n + 4 * (c - n_seg)  # `contacts_start`
+            work[o], work[o + 1], work[o + 2], work[o + 3] = fx, fy, px, py
+            if fx == 0.0 and fy == 0.0:
+                continue
+            work[rhs] += fx
+            work[rhs + 1] += fy
+            work[rhs + i] += (d * work[cosine + i] - e * work[sine + i]) * fx \
+                + (d * work[sine + i] + e * work[cosine + i]) * fy
+            s = int(seg[k, SEG_PARENT_COLUMN])
+            while s >= 0:
+                lever = seg[s, SEG_LEVER_COLUMN + k]
+                work[rhs + 2 + s] += lever * (work[cosine + 2 + s] * fx
+                                              + work[sine + 2 + s] * fy)
+                s = int(seg[s, SEG_PARENT_COLUMN])
     # LDLᵀ in place: L below the diagonal, D on it.
     for j in range(n):
         d = work[j * n + j]
@@ -212,15 +315,77 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
             for k in range(j):
                 v -= work[i * n + k] * work[j * n + k] * work[k * n + k]
             work[i * n + j] = v / d
-    for i in range(n):  # L·z = Q − c − g
+    for i in range(n):  # L·z = Q − c
         v = work[rhs + i]
         for k in range(i):
             v -= work[i * n + k] * work[rhs + k]
         work[rhs + i] = v
-    for i in range(n - 1, -1, -1):  # D·Lᵀ·φ̈ = z
+    for i in range(n - 1, -1, -1):  # D·Lᵀ·ẍ = z
         v = work[rhs + i] / work[i * n + i]
         for k in range(i + 1, n):
             v -= work[k * n + i] * work[rhs + k]
         work[rhs + i] = v
-    for k in range(n - 1, 0, -1):
-        work[rhs + k] -= work[rhs + k - 1]
+    for k in range(n_seg - 1, 0, -1):  # q̈_k = φ̈_k − φ̈_parent (parents come first)
+        p = int(seg[k, SEG_PARENT_COLUMN])
+        if p >= 0:
+            work[rhs + nb + k] -= work[rhs + nb + p]
+
+
+@njit(cache=True, error_model="numpy")
+def contact_time_constant(y, n, seg, work, c):
+    """Time constant τ = 1/|λ| (s) of ground contact ``c`` (index among the contacts), for the
+    stability guard: the point's vertical motion as a mass 1/w on the contact's spring
+    ∂F_y/∂δ and damper ∂F_y/∂δ̇ (`contact_stiffness`), with w = J·M⁻¹·Jᵀ its inverse
+    effective mass (J: the generalized direction of its vertical velocity) and λ the larger
+    root of λ² − w·d·λ + w·k = 0 in magnitude. +inf off the ground.
+
+    Call it right after `joint_accelerations` at the same state: it reads the factorization of
+    M, the trigonometry and the contact's point left in ``work`` and overwrites the
+    accelerations (the caller has copied them)."""
+    n_seg = int(seg[0, SEG_COUNT_COLUMN])
+    rhs = n * n
+    sine = rhs + n
+    cosine = sine + n
+    o = cosine + 2 * n + 4 * c  # `contacts_start`
+    row = n_seg + c
+    k = int(seg[row, CONTACT_SEGMENT])
+    height = work[o + 3]
+    if height >= 0.0:
+        return np.inf
+    # the point's vertical velocity (for the damping law) and its direction J
+    for i in range(n):
+        work[rhs + i] = 0.0
+    work[rhs + 1] = 1.0
+    d = seg[row, CONTACT_DISTANCE]
+    e = seg[row, CONTACT_OFFSET]
+    i = 2 + k
+    work[rhs + i] = d * work[sine + i] + e * work[cosine + i]
+    s = int(seg[k, SEG_PARENT_COLUMN])
+    while s >= 0:
+        work[rhs + 2 + s] = seg[s, SEG_LEVER_COLUMN + k] * work[sine + 2 + s]
+        s = int(seg[s, SEG_PARENT_COLUMN])
+    vertical_speed = 0.0
+    for j in range(n):  # J·ẋ in absolute rates: φ̇ of a segment is the sum along its path
+        rate = y[n + j]
+        if j >= 2:
+            p = int(seg[j - 2, SEG_PARENT_COLUMN])
+            while p >= 0:
+                rate += y[n + 2 + p]
+                p = int(seg[p, SEG_PARENT_COLUMN])
+        vertical_speed += work[rhs + j] * rate
+    spring, damper = contact_stiffness(height, vertical_speed, seg, row)
+    if spring <= 0.0 and damper <= 0.0:
+        return np.inf
+    # w = J·M⁻¹·Jᵀ by the LDLᵀ factorization left in work[:n²]
+    w = 0.0
+    for i in range(n):  # L·z = J
+        v = work[rhs + i]
+        for j in range(i):
+            v -= work[i * n + j] * work[rhs + j]
+        work[rhs + i] = v
+    for i in range(n):  # zᵀ·D⁻¹·z
+        w += work[rhs + i] * work[rhs + i] / work[i * n + i]
+    a = w * damper
+    disc = a * a - 4.0 * w * spring
+    rate = 0.5 * (a + math.sqrt(disc)) if disc >= 0.0 else math.sqrt(w * spring)
+    return 1.0 / rate if rate > 0.0 else np.inf

@@ -34,13 +34,30 @@ from .body import (
     ENDSTOP_SCALE,
     ENDSTOP_TORQUE,
     JOINT_ROW_SIZE,
+    SEG_COUNT_COLUMN,
     SEG_GRAVITY_COLUMN,
     SEG_INERTIA_COLUMN,
-    SEG_LENGTH_COLUMN,
+    SEG_LEVER_COLUMN,
+    SEG_MASS_COLUMN,
     SEG_MOMENT_COLUMN,
+    SEG_PARENT_COLUMN,
+    SEG_WEIGHT_COLUMN,
     SPEED_LIMIT,
     ZERO_OFFSET,
     passive_torque,
+)
+from .contact import (
+    CONTACT_DAMPING,
+    CONTACT_DISTANCE,
+    CONTACT_EXPONENT,
+    CONTACT_FRICTION,
+    CONTACT_OFFSET,
+    CONTACT_ROW_SIZE,
+    CONTACT_SEGMENT,
+    CONTACT_SLIP_SPEED,
+    CONTACT_STIFFNESS,
+    GroundContact,
+    Point,
 )
 from .state import UNIT_STATE_WIDTHS, StateLayout
 from .torque_generator import (
@@ -59,11 +76,16 @@ from .unit_row import (  # noqa: F401  (the packed unit row, read here as chain.
     UNIT_STATE_OFFSET,
 )
 
-MAX_SEGMENTS = 6
-#: Columns of the packed segment array (see `ChainModel.pack`).
-SEG_INERTIA, SEG_MOMENT, SEG_LENGTH, SEG_GRAVITY = (SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN,
-                                                    SEG_LENGTH_COLUMN, SEG_GRAVITY_COLUMN)
-SEGMENT_ARRAY_SIZE = 4
+MAX_SEGMENTS = 16
+#: Columns of the packed segment array (see `ChainModel.segment_array`).
+SEG_INERTIA, SEG_MOMENT, SEG_GRAVITY = SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_GRAVITY_COLUMN
+#: The base kinds: a fixed pivot, or free (x, y of the first segment's proximal point and its
+#: absolute angle are coordinates, and the body stands on its ground contacts).
+BASES = ("fixed", "free")
+#: Coordinates of a free base, m: the first segment's proximal point.
+BASE_COORDINATES = ("base_x", "base_y")
+#: Speed limit of a free base's coordinates, m/s (faster is a numerical failure).
+BASE_SPEED_LIMIT = 100.0
 JOINT_ARRAY_SIZE = JOINT_ROW_SIZE  # end stops, zero offset, speed limit (model.body)
 FLEXOR, EXTENSOR = 1, -1
 #: A joint speed above this many times its fastest unit's ω_max is physically impossible.
@@ -127,6 +149,13 @@ class Segment:
     length : float
         Proximal joint → next joint, m (unused for the last segment). Bounds [0, inf).
     loads : tuple of PointLoad
+    parent : str
+        Name of the segment its proximal joint sits on; "" (default): the segment before it
+        in the model's list (the base for the first), which makes a serial chain. Several
+        segments may share a parent (a tree: two legs on one pelvis).
+    parent_distance : float or None
+        Where its proximal joint sits on the parent: distance along the parent's axis from the
+        parent's proximal joint, m. None (default): the parent's ``length``. Bounds [-10, 10].
     """
 
     name: str
@@ -135,6 +164,8 @@ class Segment:
     inertia_about_joint: float
     length: float = 0.0
     loads: tuple[PointLoad, ...] = ()
+    parent: str = ""
+    parent_distance: float | None = None
 
     def __post_init__(self) -> None:
         _check_name("name", self.name)
@@ -143,6 +174,11 @@ class Segment:
         inertia = check_range("inertia_about_joint", self.inertia_about_joint, 0.0, MAX_INERTIA,
                               low_open=True, unit="kg·m^2")
         check_range("length", self.length, 0.0, MAX_LENGTH, unit="m")
+        if self.parent_distance is not None:
+            check_range("parent_distance", self.parent_distance, -MAX_LENGTH, MAX_LENGTH,
+                        unit="m")
+        if not isinstance(self.parent, str):
+            raise ModelError("parent", "must be a segment name or \"\"")
         if inertia < m * c * c * (1.0 - 1e-12):
             raise ModelError("inertia_about_joint", f"{inertia!r} is below mass·com_distance² "
                              f"= {m * c * c:.6g}; allowed ≥ that (parallel-axis theorem)")
@@ -156,6 +192,13 @@ class Segment:
                 raise ModelError(f"loads[{i}].name", f"{load.name!r} is used twice; allowed: "
                                  "unique names")
             names.add(load.name)
+
+    @property
+    def extent(self) -> float:
+        """How far the segment reaches from its proximal joint, m: its length, or for a last
+        segment (length 0) twice its centre-of-mass distance or its farthest load."""
+        return max([self.length, 2.0 * self.com_distance,
+                    *(load.distance for load in self.loads)])
 
     @property
     def total_mass(self) -> float:
@@ -326,11 +369,13 @@ class ChainModel:
     ----------
     name : str
     segments : tuple of Segment
-        1 to 6, proximal to distal.
+        1 to 16, each after its parent (`Segment.parent`).
     joints : tuple of Joint
-        One per segment: joint k is the proximal joint of segment k.
+        One per segment: joint k is the proximal joint of segment k. On a free base the first
+        joint's angle is the first segment's absolute angle (from hanging down, plus
+        ``base_angle``) and it carries no units.
     units : tuple of Unit
-        At least one per joint.
+        At least one per joint (but a free base's).
     gravity : float
         g, m/s², acting in the plane towards "hanging". Default 9.81. Bounds [0, inf).
     base_angle : float
@@ -342,6 +387,14 @@ class ChainModel:
         Simulated time, s. Default 3.0. Bounds (0, 600].
     notes : tuple of str
         Free text kept with the model (the presets cite their sources here).
+    base : str
+        "fixed" (default): the first joint is a pivot fixed at the origin. "free": the first
+        segment's proximal point (x, y) and its absolute angle are coordinates, the body
+        stands on its ground contacts and starts in static equilibrium on them.
+    points : tuple of Point
+        Named points on segments, reported in the results (toe, heel, hip…).
+    contacts : tuple of GroundContact
+        Ground contacts at points, against the line y = 0 (free base only).
     """
 
     name: str
@@ -352,12 +405,17 @@ class ChainModel:
     base_angle: float = 0.0
     duration: float = 3.0
     notes: tuple[str, ...] = ()
+    base: str = "fixed"
+    points: tuple[Point, ...] = ()
+    contacts: tuple[GroundContact, ...] = ()
 
     def __post_init__(self) -> None:
         _check_name("name", self.name.replace("-", "_") if isinstance(self.name, str)
                     else self.name)
-        for key in ("segments", "joints", "units", "notes"):
+        for key in ("segments", "joints", "units", "notes", "points", "contacts"):
             object.__setattr__(self, key, tuple(getattr(self, key)))
+        if self.base not in BASES:
+            raise ModelError("base", f"{self.base!r}; allowed: {', '.join(BASES)}")
         check_range("gravity", self.gravity, 0.0, 100.0, unit="m/s^2")
         check_range("base_angle", self.base_angle, -math.pi, math.pi, unit="rad")
         check_range("duration", self.duration, 0.0, 600.0, low_open=True, unit="s")
@@ -367,15 +425,20 @@ class ChainModel:
         if len(self.joints) != n:
             raise ModelError("joints", f"{len(self.joints)} joints for {n} segments; allowed: "
                              "one joint per segment (joint k moves segment k)")
-        for key, kind in (("segments", Segment), ("joints", Joint), ("units", Unit)):
+        for key, kind in (("segments", Segment), ("joints", Joint), ("units", Unit),
+                          ("points", Point), ("contacts", GroundContact)):
             seen = set()
             for i, item in enumerate(getattr(self, key)):
                 if not isinstance(item, kind):
                     raise ModelError(f"{key}[{i}]", f"must be a {kind.__name__}")
-                if item.name in seen:
-                    raise ModelError(f"{key}[{i}].name", f"{item.name!r} is used twice; "
+                name = item.point if key == "contacts" else item.name
+                if name in seen:
+                    field = "point" if key == "contacts" else "name"
+                    raise ModelError(f"{key}[{i}].{field}", f"{name!r} is used twice; "
                                      "allowed: unique names")
-                seen.add(item.name)
+                seen.add(name)
+        self._check_tree()
+        self._check_points()
         coordinates = [j.coordinate for j in self.joints]
         if len(set(coordinates)) != n:
             raise ModelError("joints.coordinate", "two joints share a coordinate name; "
@@ -385,11 +448,50 @@ class ChainModel:
             if unit.joint not in joint_names:
                 raise ModelError(f"units[{i}].joint", f"{unit.joint!r} is not a joint; "
                                  f"allowed: {', '.join(joint_names)}")
+        free_joint = self.joints[0].name if self.base == "free" else None
+        for i, unit in enumerate(self.units):
+            if unit.joint == free_joint:
+                raise ModelError(f"units[{i}].joint", f"{unit.joint!r} is the free base's "
+                                 "joint, which carries no units; allowed: "
+                                 f"{', '.join(joint_names[1:])}")
         for joint in self.joints:
-            if not any(u.joint == joint.name for u in self.units):
+            if joint.name != free_joint and not any(u.joint == joint.name for u in self.units):
                 raise ModelError(f"joints.{joint.name}", "has no torque generator unit; "
                                  "allowed: at least one unit per joint")
         self.initial_state()  # raises if the start cannot be held
+
+    def _check_tree(self) -> None:
+        names = [seg.name for seg in self.segments]
+        for k, seg in enumerate(self.segments):
+            if seg.parent and seg.parent not in names[:k]:
+                raise ModelError(f"segments[{k}].parent", f"{seg.parent!r} is not a segment "
+                                 "listed before it; allowed: "
+                                 f"{', '.join(names[:k]) or 'none (the first segment)'}")
+
+    def _check_points(self) -> None:
+        segments = {seg.name: seg for seg in self.segments}
+        for i, point in enumerate(self.points):
+            if point.segment not in segments:
+                raise ModelError(f"points[{i}].segment", f"{point.segment!r} is not a "
+                                 f"segment; allowed: {', '.join(segments)}")
+            reach = segments[point.segment].extent
+            for field in ("distance", "offset"):
+                value = getattr(point, field)
+                if not -reach <= value <= reach:
+                    raise ModelError(f"points[{i}].{field}", f"{value!r} m is off segment "
+                                     f"{point.segment}; allowed [{-reach:g}, {reach:g}] m "
+                                     "(its extent)")
+        points = [p.name for p in self.points]
+        for i, contact in enumerate(self.contacts):
+            if contact.point not in points:
+                raise ModelError(f"contacts[{i}].point", f"{contact.point!r} is not a point; "
+                                 f"allowed: {', '.join(points) or 'none (define points)'}")
+        if self.contacts and self.base != "free":
+            raise ModelError("contacts", "need base = \"free\" (a body on a fixed pivot "
+                             "cannot stand on the ground)")
+        if self.base == "free" and not self.contacts:
+            raise ModelError("contacts", "a free base needs at least one ground contact to "
+                             "start standing on")
 
     # -- structure ----------------------------------------------------------------------
     @property
@@ -406,13 +508,42 @@ class ChainModel:
         return any(u.activation_dynamics is not None for u in self.units)
 
     @property
+    def n_base(self) -> int:
+        """Coordinates of the base before the joint angles: 2 (x, y) on a free base, else 0."""
+        return len(BASE_COORDINATES) if self.base == "free" else 0
+
+    @property
+    def n_coordinates(self) -> int:
+        """Generalized coordinates: the base's (free base) and the joint angles."""
+        return self.n_base + self.n_joints
+
+    @property
+    def parents(self) -> tuple[int, ...]:
+        """Index of each segment's parent segment, −1 for the first (on the base)."""
+        names = [seg.name for seg in self.segments]
+        return tuple(-1 if k == 0 else names.index(seg.parent) if seg.parent else k - 1
+                     for k, seg in enumerate(self.segments))
+
+    def parent_distances(self) -> np.ndarray:
+        """Where each segment's proximal joint sits along its parent's axis, m (0 for the
+        first)."""
+        out = np.zeros(self.n_joints)
+        for k, p in enumerate(self.parents):
+            if p >= 0:
+                seg = self.segments[k]
+                out[k] = self.segments[p].length if seg.parent_distance is None \
+                    else seg.parent_distance
+        return out
+
+    @property
     def state_size(self) -> int:
         return self.layout.size
 
     @property
     def layout(self) -> StateLayout:
-        """Where q, q̇ and each unit's states sit in the state vector."""
-        return StateLayout(self.n_joints, tuple(UNIT_STATE_WIDTHS[u.kind] for u in self.units))
+        """Where the coordinates, their speeds and each unit's states sit in y."""
+        return StateLayout(self.n_joints, tuple(UNIT_STATE_WIDTHS[u.kind] for u in self.units),
+                           self.n_base)
 
     def joint_index(self, name: str) -> int:
         """Index of the joint named ``name`` (or with that coordinate name)."""
@@ -455,8 +586,8 @@ class ChainModel:
             own.append(f"theta_cc_{unit.name}")
             if unit.activation_dynamics is not None:
                 own.append(f"activation_state_{unit.name}")
-        return (*(j.coordinate for j in self.joints),
-                *(f"{j.coordinate}_speed" for j in self.joints), *own)
+        coordinates = (*BASE_COORDINATES[:self.n_base], *(j.coordinate for j in self.joints))
+        return (*coordinates, *(f"{c}_speed" for c in coordinates), *own)
 
     def replace(self, **changes) -> ChainModel:
         """A copy with some fields changed (validated again)."""
@@ -483,54 +614,103 @@ class ChainModel:
 
     # -- packing ------------------------------------------------------------------------
     def segment_array(self) -> np.ndarray:
-        """Per segment k (proximal joint k), with M_k = total mass of segments k+1…n:
+        """The packed body: one row per segment k, then one row per ground contact.
 
-        A_k = J_k + L_k²·M_k     inertia about joint k of segment k and all it carries, kg·m²
-        B_k = S_k + L_k·M_k      first moment about joint k of segment k onwards, kg·m
-        L_k                      length to joint k + 1, m
-        g·B_k                    gravity moment coefficient, N·m
+        Segment rows, with M_c the mass of segment c and everything distal to it and d_c the
+        distance along its parent where c is attached (`parent_distances`):
+
+        A_k = J_k + Σ_children d_c²·M_c    inertia about joint k of segment k and all it
+                                           carries, kg·m²
+        B_k = S_k + Σ_children d_c·M_c     first moment about joint k of the same, kg·m
+        g·B_k                              gravity moment coefficient, N·m
+        parent                             index of the parent segment, −1: the base
+        Λ_kb (columns SEG_LEVER + b)       for every segment b distal to k, the distance
+                                           along k to where the branch leading to b is
+                                           attached, m (0 for the others)
 
         (J_k, S_k: the segment's own inertia about its joint and first moment, loads
-        included.) The mass matrix in absolute angles is M_kk = A_k and
-        M_jk = L_j·B_k·cos(φ_j − φ_k) for j < k (docs/model.md §1).
+        included.) Row 0 also holds the number of segments, the total mass (kg) and the
+        weight (N). For a serial chain Λ_kb = L_k (b > k), so the mass matrix in absolute
+        angles is M_kk = A_k and M_jk = L_j·B_k·cos(φ_j − φ_k) for j < k (docs/model.md §1).
+        Contact rows: segment index, the point's distance and offset, and the contact's
+        parameters (`torquesim.model.contact`).
         """
         n = self.n_joints
-        out = np.zeros((n, SEGMENT_ARRAY_SIZE))
-        distal = 0.0
-        for k in range(n - 1, -1, -1):
+        parents = self.parents
+        attach = self.parent_distances()
+        out = np.zeros((n + len(self.contacts), max(SEG_LEVER_COLUMN + n, CONTACT_ROW_SIZE)))
+        distal = np.array([seg.total_mass for seg in self.segments])  # M_k, summed below
+        for k in range(n - 1, -1, -1):  # children come after their parents
             seg = self.segments[k]
-            length = seg.length if k < n - 1 else 0.0
-            out[k, SEG_INERTIA] = seg.inertia_with_loads + length**2 * distal
-            out[k, SEG_MOMENT] = seg.first_moment + length * distal
-            out[k, SEG_LENGTH] = length
+            out[k, SEG_INERTIA] += seg.inertia_with_loads
+            out[k, SEG_MOMENT] += seg.first_moment
             out[k, SEG_GRAVITY] = self.gravity * out[k, SEG_MOMENT]
-            distal += seg.total_mass
+            out[k, SEG_PARENT_COLUMN] = parents[k]
+            p = parents[k]
+            if p >= 0:
+                out[p, SEG_INERTIA] += attach[k] ** 2 * distal[k]
+                out[p, SEG_MOMENT] += attach[k] * distal[k]
+                distal[p] += distal[k]
+        for b in range(n):  # Λ_sb: walk from b up to the base
+            child, s = b, parents[b]
+            while s >= 0:
+                out[s, SEG_LEVER_COLUMN + b] = attach[child]
+                child, s = s, parents[s]
+        out[0, SEG_COUNT_COLUMN] = n
+        out[0, SEG_MASS_COLUMN] = distal[0]
+        out[0, SEG_WEIGHT_COLUMN] = self.gravity * distal[0]
+        points = {p.name: p for p in self.points}
+        segments = [seg.name for seg in self.segments]
+        for c, contact in enumerate(self.contacts):
+            point = points[contact.point]
+            row = out[n + c]
+            row[CONTACT_SEGMENT] = segments.index(point.segment)
+            row[CONTACT_DISTANCE] = point.distance
+            row[CONTACT_OFFSET] = point.offset
+            row[CONTACT_STIFFNESS] = contact.stiffness
+            row[CONTACT_EXPONENT] = contact.exponent
+            row[CONTACT_DAMPING] = contact.damping
+            row[CONTACT_FRICTION] = contact.friction
+            row[CONTACT_SLIP_SPEED] = contact.slip_speed
         return out
 
     def joint_array(self) -> np.ndarray:
-        """(n, 6): each joint's end stops, the offset added to q_k in φ_k (the base angle for
-        the first joint, 0 for the others) and its speed limit (`speed_limits`)."""
-        out = np.zeros((self.n_joints, JOINT_ARRAY_SIZE))
+        """One row per coordinate (`n_coordinates`): the base's x and y on a free base (no
+        end stops), then each joint's end stops, the offset added to q_k in φ_k (the base
+        angle for the first joint, 0 for the others) and its speed limit (`speed_limits`). A
+        free base's joint has no end stops."""
+        nb = self.n_base
+        out = np.zeros((self.n_coordinates, JOINT_ARRAY_SIZE))
+        for i in range(nb):  # no stops within ±1 km: only a divergence reaches them
+            out[i, ENDSTOP_SCALE] = 1.0
+            out[i, ENDSTOP_LOW], out[i, ENDSTOP_HIGH] = -1e3, 1e3
         for k, joint in enumerate(self.joints):
-            out[k, :ZERO_OFFSET] = joint.endstop_array()
-        out[0, ZERO_OFFSET] = self.base_angle
+            out[nb + k, :ZERO_OFFSET] = joint.endstop_array()
+        if nb:
+            out[nb, ENDSTOP_TORQUE] = 0.0
+        out[nb, ZERO_OFFSET] = self.base_angle
         out[:, SPEED_LIMIT] = self.speed_limits()
         return out
 
     def speed_limits(self) -> np.ndarray:
-        """The largest physically possible speed of each joint, rad/s:
-        `SPEED_LIMIT_FACTOR` × the fastest ω_max of its units. A joint turning faster
-        than any of its units can shorten, ten times over, is a numerical failure, not a
-        motion; the solvers stop there (and at an angle more than a full turn beyond the end
-        stops)."""
-        return np.array([SPEED_LIMIT_FACTOR * max(u.parameters.max_velocity for u in self.units
-                                                  if u.joint == j.name) for j in self.joints])
+        """The largest physically possible speed of each coordinate, rad/s (m/s for a free
+        base's x, y): `SPEED_LIMIT_FACTOR` × the fastest ω_max of the joint's units (of all
+        units for a free base's angle; 10 rad/s for a body without units);
+        `BASE_SPEED_LIMIT` for x and y. A joint turning
+        faster than any of its units can shorten, ten times over, is a numerical failure, not
+        a motion; the solvers stop there (and at an angle more than a full turn beyond the
+        end stops)."""
+        overall = max((u.parameters.max_velocity for u in self.units), default=10.0)
+        fastest = [max((u.parameters.max_velocity for u in self.units if u.joint == j.name),
+                       default=overall) for j in self.joints]
+        return np.array([BASE_SPEED_LIMIT] * self.n_base
+                        + [SPEED_LIMIT_FACTOR * w for w in fastest])
 
     def unit_array(self) -> np.ndarray:
         out = np.zeros((self.n_units, UNIT_ROW_SIZE))
         for i, unit in enumerate(self.units):
             out[i, :UNIT_JOINT] = unit.parameters.to_array()
-            out[i, UNIT_JOINT] = self.joint_index(unit.joint)
+            out[i, UNIT_JOINT] = self.n_base + self.joint_index(unit.joint)  # its coordinate
             out[i, UNIT_DIRECTION] = unit.direction
             out[i, UNIT_STATE_OFFSET] = self.layout.unit_offset(i)
             if unit.activation_dynamics is not None:
@@ -547,16 +727,22 @@ class ChainModel:
 
     # -- the start ------------------------------------------------------------------------
     def absolute_angles(self, q) -> np.ndarray:
-        """φ_k = base_angle + q_1 + … + q_k, rad."""
-        return self.base_angle + np.cumsum(np.asarray(q, dtype=float))
+        """φ_k = φ_parent + q_k, φ_1 = base_angle + q_1, rad (a serial chain:
+        base_angle + q_1 + … + q_k)."""
+        q = np.asarray(q, dtype=float)
+        phi = np.empty(self.n_joints)
+        for k, p in enumerate(self.parents):
+            phi[k] = (self.base_angle if p < 0 else phi[p]) + q[k]
+        return phi
 
     def gravity_joint_torques(self, q) -> np.ndarray:
         """Torque gravity exerts at each joint, N·m (flexion positive):
-        −Σ_{k ≥ j} g·B_k·sin φ_k."""
+        −Σ_{k distal to j, and j} g·B_k·sin φ_k."""
         phi = self.absolute_angles(q)
-        g_moment = self.segment_array()[:, SEG_GRAVITY]
-        per_segment = g_moment * np.sin(phi)
-        return -np.cumsum(per_segment[::-1])[::-1]
+        acc = self.segment_array()[:self.n_joints, SEG_GRAVITY] * np.sin(phi)
+        for k in range(self.n_joints - 1, 0, -1):
+            acc[self.parents[k]] += acc[k]
+        return -acc
 
     def initial_state(self) -> ChainStart:
         """Static equilibrium at rest at the joints' initial angles (docs/model.md §7).
@@ -585,16 +771,144 @@ class ChainModel:
             self.__dict__["_start"] = start  # frozen: cache outside the fields
         return ChainStart(start.state.copy(), start.levels.copy(), start.torques.copy())
 
+    def kinematics(self, coordinates, speeds=None) -> dict[str, np.ndarray]:
+        """Where the body is, and how fast it moves, at coordinates (x, y on a free base, then
+        q; shape (N,) or (T, N)) and their speeds, m and m/s:
+
+        ``joints``, ``centres`` (…, n, 2): each segment's proximal joint and centre of mass
+        (with its loads); ``points`` (…, points, 2); ``com`` (…, 2): the whole body's centre
+        of mass; ``angles`` (…, n): the absolute angles φ_k (rad); with ``speeds`` also
+        ``centre_velocities``, ``point_velocities`` and ``com_velocity``. The base (fixed, at
+        the origin) or (x, y) (free) is the first joint; a segment's axis points along
+        u(φ) = (sin φ, −cos φ), its perpendicular n(φ) = (cos φ, sin φ), and a point at
+        distance d and offset e on segment k is at P_k + d·u(φ_k) + e·n(φ_k)."""
+        coords = np.atleast_2d(np.asarray(coordinates, dtype=float))
+        rates = None if speeds is None else np.atleast_2d(np.asarray(speeds, dtype=float))
+        nb, n = self.n_base, self.n_joints
+        steps = coords.shape[0]
+        phi = np.empty((steps, n))
+        phid = np.zeros((steps, n))
+        for k, p in enumerate(self.parents):
+            phi[:, k] = (self.base_angle if p < 0 else phi[:, p]) + coords[:, nb + k]
+            if rates is not None:
+                phid[:, k] = (0.0 if p < 0 else phid[:, p]) + rates[:, nb + k]
+        axis = np.stack([np.sin(phi), -np.cos(phi)], axis=-1)
+        normal = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+        swing = phid[..., None] * normal  # d(u)/dt per unit length
+        attach = self.parent_distances()
+        joints = np.zeros((steps, n, 2))
+        joint_v = np.zeros((steps, n, 2))
+        for k, p in enumerate(self.parents):
+            if p < 0:
+                if nb:
+                    joints[:, k] = coords[:, :2]
+                    if rates is not None:
+                        joint_v[:, k] = rates[:, :2]
+            else:
+                joints[:, k] = joints[:, p] + attach[k] * axis[:, p]
+                joint_v[:, k] = joint_v[:, p] + attach[k] * swing[:, p]
+        lever = np.array([seg.first_moment / seg.total_mass for seg in self.segments])
+        masses = np.array([seg.total_mass for seg in self.segments])
+        centres = joints + lever[None, :, None] * axis
+        centre_v = joint_v + lever[None, :, None] * swing
+        index = {seg.name: k for k, seg in enumerate(self.segments)}
+        on = [index[pt.segment] for pt in self.points]
+        d = np.array([pt.distance for pt in self.points])[None, :, None]
+        e = np.array([pt.offset for pt in self.points])[None, :, None]
+        points = joints[:, on] + d * axis[:, on] + e * normal[:, on]
+        out = {"joints": joints, "centres": centres, "points": points, "angles": phi,
+               "com": np.einsum("k,tkc->tc", masses, centres) / masses.sum()}
+        if rates is not None:
+            out["centre_velocities"] = centre_v
+            out["point_velocities"] = joint_v[:, on] + d * swing[:, on] \
+                + e * (-phid[:, on, None] * axis[:, on])
+            out["com_velocity"] = np.einsum("k,tkc->tc", masses, centre_v) / masses.sum()
+        if np.ndim(coordinates) == 1:
+            out = {key: value[0] for key, value in out.items()}
+        return out
+
+    def _contact_points(self) -> list[int]:
+        """Index in `points` of each contact's point."""
+        names = [p.name for p in self.points]
+        return [names.index(c.point) for c in self.contacts]
+
+    def _stand(self, q0: np.ndarray):
+        """Static equilibrium of a free body on its contacts at the joint angles ``q0``:
+        the base height y and the first segment's angle q_1 at which the contacts' normal
+        forces k·δⁿ carry the weight with no net moment (x = 0, at rest, so no friction).
+        Returns (base (x, y), q_1, the torque every joint must supply against gravity and
+        the contacts, N·m). A `ModelError` when the centre of mass is not over the contacts."""
+        from scipy.optimize import fsolve
+
+        weight = self.gravity * sum(seg.total_mass for seg in self.segments)
+        masses = np.array([seg.total_mass for seg in self.segments])
+        which = self._contact_points()
+
+        def forces(height_and_angle):
+            coords = np.concatenate([[0.0, height_and_angle[0], height_and_angle[1]], q0[1:]])
+            where = self.kinematics(coords)
+            depth = np.maximum(-where["points"][which, 1], 0.0)
+            k = np.array([c.stiffness for c in self.contacts])
+            power = np.array([c.exponent for c in self.contacts])
+            return where, k * depth**power
+
+        def residual(height_and_angle):
+            where, normal = forces(height_and_angle)
+            arms = where["points"][which, 0] - where["com"][0]
+            return [(normal.sum() - weight) / weight, normal @ arms / weight]
+
+        where = self.kinematics(np.concatenate([[0.0, 0.0], q0]))
+        com = where["com"]
+        xs = where["points"][which, 0]
+        if self.gravity > 0 and not xs.min() <= com[0] <= xs.max():
+            raise ModelError("joints.initial_angle", f"the centre of mass (x = {com[0]:.3f} "
+                             f"m) is not over the contacts (x from {xs.min():.3f} to "
+                             f"{xs.max():.3f} m): the posture cannot stand; allowed: a "
+                             "posture whose centre of mass lies over its contact points")
+        sink = max((weight / len(which) / c.stiffness) ** (1 / c.exponent)
+                   for c in self.contacts)
+        guess = [-where["points"][which, 1].min() - sink, q0[0]]
+        solution, info, ok, _ = fsolve(residual, guess, full_output=True, xtol=1e-13)
+        if ok != 1 or max(abs(v) for v in residual(solution)) > 1e-9:
+            raise ModelError("joints.initial_angle", "no static equilibrium on the ground "
+                             "found near this posture; allowed: a posture that can stand")
+        where, normal = forces(solution)
+        external = np.zeros(self.n_joints)  # torque of gravity and contacts about joint j
+        subtree = self._subtrees()
+        segment_of = [next(k for k, s in enumerate(self.segments)
+                           if s.name == self.points[i].segment) for i in which]
+        for j in range(self.n_joints):
+            pivot = where["joints"][j]
+            for k in subtree[j]:
+                external[j] -= self.gravity * masses[k] * (where["centres"][k, 0] - pivot[0])
+            for c, i in enumerate(which):
+                if segment_of[c] in subtree[j]:
+                    external[j] += normal[c] * (where["points"][i, 0] - pivot[0])
+        return np.array([0.0, solution[0]]), solution[1], external
+
+    def _subtrees(self) -> list[set[int]]:
+        """Each segment with everything distal to it."""
+        out = [{k} for k in range(self.n_joints)]
+        for k in range(self.n_joints - 1, 0, -1):
+            out[self.parents[k]] |= out[k]
+        return out
+
     def _solve_initial_state(self) -> ChainStart:
         """`initial_state`, solved."""
         n, nu = self.n_joints, self.n_units
         q0 = np.array([float(j.initial_angle) for j in self.joints])
         segments = self.segment_array()
-        gravity = self.gravity_joint_torques(q0) if n > 1 else None
+        base = np.zeros(self.n_base)
+        if self.base == "free":  # standing: the ground holds the body, the joints hold it
+            base, q0[0], gravity = self._stand(q0)
+        else:
+            gravity = self.gravity_joint_torques(q0) if n > 1 else None
         theta_cc = np.zeros(nu)
         levels = np.zeros(nu)
         torques = np.zeros(nu)
         for j, joint in enumerate(self.joints):
+            if self.base == "free" and j == 0:
+                continue  # the free base's joint: no units, nothing to hold
             q = q0[j]
             passive = passive_torque(q, joint.endstop_array())
             if gravity is None:  # one segment: the elbow's own arithmetic (docs/model.md §3)
@@ -652,7 +966,8 @@ class ChainModel:
                 torques[i] = unit.parameters.se_stiffness * s
                 theta_cc[i] = q + unit.direction * s
         state = np.zeros(self.state_size)
-        state[:n] = q0
+        state[:self.n_base] = base
+        state[self.layout.angles] = q0
         layout = self.layout
         for i in range(nu):
             state[layout.unit_state(i)] = theta_cc[i]
@@ -713,7 +1028,7 @@ def pack_activations(profiles, levels) -> np.ndarray:
     """(U, P) array: row u is profile u packed as [a_0, n, (t_on, r, level) × n], its
     "equilibrium" initial level taken from ``levels[u]``; shorter rows are zero-padded."""
     rows = [p.to_array(float(level)) for p, level in zip(profiles, levels, strict=True)]
-    width = max(r.size for r in rows)
+    width = max((r.size for r in rows), default=2)
     out = np.zeros((len(rows), width))
     for i, r in enumerate(rows):
         out[i, : r.size] = r

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from ..errors import ModelError
 from .activation import ActivationProfile, Ramp
 from .chain import ChainModel, Joint, PointLoad, Segment, Unit
+from .contact import GroundContact, Point
 from .elbow import ElbowModel
 from .torque_generator import TorqueGeneratorUnit
 
@@ -127,10 +128,86 @@ def arm_raise() -> ChainModel:
             "1.7-2.9 s (2.9 deg RMS).",))
 
 
+def _leg_unit(t0: float, optimal_angle: float, stiffness: float) -> TorqueGeneratorUnit:
+    """A lower-limb unit (both legs together): the elbow's T_ω/d shape with ω_max 25 rad/s
+    and ω_c 7.5 rad/s (est.: knee and hip extension reach 15–20 rad/s in jumps), eccentric
+    plateau 1.4·T0, angle curvature 0.3 rad⁻²."""
+    return TorqueGeneratorUnit(
+        isometric_torque=t0, eccentric_torque_max=1.4 * t0, max_velocity=25.0,
+        velocity_constant=7.5, min_differential_activation=0.90,
+        differential_activation_rate=0.5, differential_activation_midpoint=0.0,
+        optimal_angle=optimal_angle, angle_curvature=0.3, se_stiffness=stiffness)
+
+
+def squat_jump() -> ChainModel:
+    """A squat jump from a static squat: foot, shank, thigh and head-arms-trunk (both legs
+    together) on a free base, standing on toe and heel contacts; the extensors of ankle, knee
+    and hip switch on from the static squat, the body leaves the ground at ≈0.36 s."""
+    foot_mass = 2 * 0.0137 * BODY_MASS
+    foot = Segment("foot", foot_mass, 0.06, foot_mass * (0.06**2 + (0.245 * 0.2581) ** 2), 0.17)
+    shank_mass, shank_com, shank_inertia = _de_leva(2 * 0.0433, 0.4340, 1 - 0.4459, 0.255)
+    shank = Segment("shank", shank_mass, shank_com, shank_inertia, 0.4340, parent_distance=0.0)
+    thigh_mass, thigh_com, thigh_inertia = _de_leva(2 * 0.1416, 0.4222, 1 - 0.4095, 0.329)
+    thigh = Segment("thigh", thigh_mass, thigh_com, thigh_inertia, 0.4222)
+    hat_mass = BODY_MASS - foot_mass - shank_mass - thigh_mass
+    hat = Segment("head_arms_trunk", hat_mass, 0.33, hat_mass * (0.33**2 + 0.25**2), 0.60)
+    # Absolute angles of the static squat (from hanging down, counterclockwise, facing +x):
+    # foot axis ankle -> toe 62 deg, shank 151 deg (28.6 deg forwards of upright), thigh 249
+    # deg, trunk 146 deg (34 deg forwards).
+    phi = (1.08, math.pi - 0.5, math.pi + 1.2, math.pi - 0.6)
+    stops = dict(endstop_torque=20.0, endstop_angle_scale=0.05)
+    joints = (
+        Joint("foot_ground", initial_angle=phi[0], endstop_torque=0.0,
+              endstop_lower_angle=-math.pi, endstop_upper_angle=2 * math.pi,
+              coordinate="foot_angle"),
+        Joint("ankle", initial_angle=phi[1] - phi[0], endstop_lower_angle=0.5,
+              endstop_upper_angle=3.0, coordinate="ankle_angle", **stops),
+        Joint("knee", initial_angle=phi[2] - phi[1], endstop_lower_angle=0.0,
+              endstop_upper_angle=2.6, coordinate="knee_angle", **stops),
+        Joint("hip", initial_angle=phi[3] - phi[2], endstop_lower_angle=-2.6,
+              endstop_upper_angle=0.3, coordinate="hip_angle", **stops),
+    )
+
+    def push(delay: float) -> ActivationProfile:
+        return ActivationProfile(None, (Ramp(delay, 0.12, 1.0), Ramp(0.15 - delay, 0.1, 0.05)))
+
+    def hold() -> ActivationProfile:
+        return ActivationProfile(0.1)
+
+    units = (
+        Unit("plantarflexors", "ankle", 1, _leg_unit(250.0, 2.0, 4000.0), push(0.10)),
+        Unit("dorsiflexors", "ankle", -1, _leg_unit(100.0, 1.6, 1500.0), hold()),
+        Unit("knee_extensors", "knee", -1, _leg_unit(350.0, 1.2, 5000.0), push(0.05)),
+        Unit("knee_flexors", "knee", 1, _leg_unit(200.0, 0.8, 2500.0), hold()),
+        Unit("hip_extensors", "hip", 1, _leg_unit(400.0, -1.4, 6000.0), push(0.05)),
+        Unit("hip_flexors", "hip", -1, _leg_unit(250.0, -1.0, 3000.0), hold()),
+    )
+    points = (Point("toe", "foot", 0.17), Point("heel", "foot", -0.0064, -0.094),
+              Point("hip_joint", "thigh", 0.4222))
+    return ChainModel(
+        "squat-jump", (foot, shank, thigh, hat), joints, units, duration=0.55, base="free",
+        points=points, contacts=(GroundContact("toe"), GroundContact("heel")), notes=(
+            "Both legs together. Foot 1.37 %, shank 4.33 %, thigh 14.16 % of 73 kg (x2); shank "
+            "0.434 m, CoM 44.59 % from the knee, radius of gyration 25.5 %; thigh 0.4222 m, "
+            "CoM 40.95 % from the hip, 32.9 %; foot radius of gyration 24.5 % of 0.258 m (de "
+            "Leva 1996). Head-arms-trunk: the remaining 44 kg, CoM 0.33 m above the hip, "
+            "radius of gyration 0.25 m about it (est.).",
+            "Foot: its axis runs from the ankle to the toe (0.17 m, the root of the free base); "
+            "the heel 9.4 cm below that axis; the ankle 8 cm above the ground (est.).",
+            "Joint torques for both legs (est., about twice single-leg isometric peaks of "
+            "trained adults): plantarflexors 250, knee extensors 350, hip extensors 400 N m; "
+            "antagonists 100-250 N m at activation 0.1. SE stiffness 15 T0 per rad (est.).",
+            "Ground contacts at toe and heel: Hunt-Crossley k = 5e6 N/m^1.5, n = 1.5, c = 1 s/m, "
+            "regularised Coulomb friction mu = 0.8 (est.).",
+            "Extensors on from the static squat (knee and hip at 50 ms, ankle at 100 ms, 120 "
+            "ms ramps to 1) and off again after 150 ms at full level.",))
+
+
 PRESETS: dict[str, Callable[[], ChainModel]] = {
     "elbow-curl": elbow_curl,
     "knee-extension": knee_extension,
     "arm-raise": arm_raise,
+    "squat-jump": squat_jump,
 }
 
 

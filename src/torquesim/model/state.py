@@ -1,4 +1,6 @@
-"""The state vector's layout, in one place: y = (q_1…q_n, q̇_1…q̇_n, the units' own states).
+"""The state vector's layout, in one place: y = (coordinates, their speeds, the units' own
+states), the coordinates being the joint angles q_1…q_n, preceded on a free base by the
+position (x, y) of the first segment's proximal point.
 
 Every kernel, result and file reads positions through these names, never through literal
 offsets. Each unit kind has its own state width (`UNIT_STATE_WIDTHS`): a Hill unit has one
@@ -22,14 +24,15 @@ UNIT_STATE_WIDTHS = {"hill": 1, "hill_with_activation_dynamics": 2}
 
 @njit(cache=True, inline="always")
 def unit_states_start(n):
-    """Index in y of the first unit state on a chain of ``n`` joints (after q and q̇)."""
+    """Index in y of the first unit state of a body of ``n`` coordinates (after them and
+    their speeds)."""
     return 2 * n
 
 
 @njit(cache=True, inline="always")
 def unit_state(n, units, u):
-    """Index in y of unit ``u``'s CE angle θ_cc on a chain of ``n`` joints (``units``: the
-    flat packed unit rows)."""
+    """Index in y of unit ``u``'s CE angle θ_cc on a body of ``n`` coordinates (``units``:
+    the flat packed unit rows)."""
     return 2 * n + int(units[u * UNIT_ROW_SIZE + UNIT_STATE_OFFSET])
 
 
@@ -42,30 +45,55 @@ def has_activation_state(units, u):
 
 @dataclass(frozen=True)
 class StateLayout:
-    """Where each quantity sits in the state vector y of a chain of ``n_joints`` joints whose
-    units have ``unit_widths`` states each (`ChainModel.layout`)."""
+    """Where each quantity sits in the state vector y of a body of ``n_joints`` joints (and
+    ``n_base`` base coordinates: 2 on a free base) whose units have ``unit_widths`` states
+    each (`ChainModel.layout`)."""
 
     n_joints: int
     unit_widths: tuple[int, ...]
+    n_base: int = 0
 
     @property
     def n_units(self) -> int:
         return len(self.unit_widths)
 
     @property
+    def n_coordinates(self) -> int:
+        return self.n_base + self.n_joints
+
+    @property
+    def base_position(self) -> slice:
+        """(x, y) of a free base, m (empty on a fixed base)."""
+        return slice(0, self.n_base)
+
+    @property
+    def base_velocity(self) -> slice:
+        """(ẋ, ẏ) of a free base, m/s."""
+        return slice(self.n_coordinates, self.n_coordinates + self.n_base)
+
+    @property
+    def coordinates(self) -> slice:
+        """The base's coordinates and the joint angles."""
+        return slice(0, self.n_coordinates)
+
+    @property
+    def coordinate_speeds(self) -> slice:
+        return slice(self.n_coordinates, 2 * self.n_coordinates)
+
+    @property
     def angles(self) -> slice:
         """q, rad (joint angles)."""
-        return slice(0, self.n_joints)
+        return slice(self.n_base, self.n_coordinates)
 
     @property
     def speeds(self) -> slice:
         """q̇, rad/s (joint angular velocities)."""
-        return slice(self.n_joints, 2 * self.n_joints)
+        return slice(self.n_coordinates + self.n_base, 2 * self.n_coordinates)
 
     @property
     def unit_states(self) -> slice:
         """Every unit's own states, unit by unit."""
-        return slice(2 * self.n_joints, self.size)
+        return slice(2 * self.n_coordinates, self.size)
 
     def unit_offset(self, u: int) -> int:
         """Offset of unit ``u``'s first state from the first unit state."""
@@ -73,7 +101,7 @@ class StateLayout:
 
     def unit_state(self, u: int) -> int:
         """Index of unit ``u``'s θ_cc."""
-        return 2 * self.n_joints + self.unit_offset(u)
+        return 2 * self.n_coordinates + self.unit_offset(u)
 
     def activation_state(self, u: int) -> int | None:
         """Index of unit ``u``'s activation a, or None when a is its profile (no dynamics)."""
@@ -86,4 +114,4 @@ class StateLayout:
 
     @property
     def size(self) -> int:
-        return 2 * self.n_joints + sum(self.unit_widths)
+        return 2 * self.n_coordinates + sum(self.unit_widths)

@@ -27,8 +27,10 @@ from ..model.body import (
     ENDSTOP_HIGH,
     ENDSTOP_LOW,
     JOINT_ROW_SIZE,
+    SEG_COUNT_COLUMN,
     SPEED_LIMIT,
     body_work_size,
+    contact_time_constant,
     joint_accelerations,
     single_segment_acceleration,
 )
@@ -74,10 +76,12 @@ from .sdirk import unit_implicit_ce_velocity
 # equations solved. COUPLING_*: the coupling-error indicator of the partitioned loop (see
 # rk4_partitioned): Σ over steps of max_j |δτ_j|·h (N·m·s), its largest term's |δτ| (N·m) and
 # time (s), and Σ over steps of max_j |δq_j| (rad).
+# CONTACT_*: the stability guard of the ground contacts (always explicit, in the body part):
+# the largest step/τ of a contact (`contact_time_constant`), its time and contact index.
 STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
     NEWTON_ITERATIONS, IMPLICIT_SOLVES, COUPLING_TORQUE, COUPLING_TORQUE_MAX, COUPLING_TIME, \
-    COUPLING_ANGLE = range(14)
-STATS_SIZE = 14
+    COUPLING_ANGLE, CONTACT_RATIO, CONTACT_TIME, CONTACT_INDEX = range(17)
+STATS_SIZE = 17
 # Status codes. DIVERGED: the state left the physically possible range (a joint more than a
 # full turn beyond its end stops, or faster than its speed limit, ChainModel.speed_limits).
 OK, NON_FINITE, DIVERGED = 0, 1, 2
@@ -135,6 +139,19 @@ def _record_stiffness(stats, t, ratio, u):
         stats[WORST_UNIT] = u
 
 
+@njit(cache=True, error_model="numpy")
+def _record_contacts(stats, t, h, y, n, seg, work):
+    """Update the contacts' stability guard at state ``y`` (time t, step h), right after
+    `joint_accelerations` there (see `contact_time_constant`)."""
+    n_seg = int(seg[0, SEG_COUNT_COLUMN])
+    for c in range(seg.shape[0] - n_seg):
+        ratio = h / contact_time_constant(y, n, seg, work, c)
+        if ratio > stats[CONTACT_RATIO]:
+            stats[CONTACT_RATIO] = ratio
+            stats[CONTACT_TIME] = t
+            stats[CONTACT_INDEX] = c
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _predict(preceding, preceding_before, this_before):
     """Guess for a stage's CE velocity, rad/s: the value of the same stage one step earlier,
@@ -146,18 +163,20 @@ def _predict(preceding, preceding_before, this_before):
 
 
 @njit(cache=True, error_model="numpy")
-def check_body_kind(seg, general_body):
-    """Check that the number of segments matches ``general_body``.
+def check_body_kind(joints, general_body):
+    """Check that the number of coordinates (rows of the 2-D ``joints``) matches
+    ``general_body``.
 
-    The loops take ``general_body=True`` for chains of two or more segments (the general
-    mass-matrix solve) and leave it out for one segment, where the acceleration is one
-    division. Left out, it is a compile-time constant and Numba removes the general branch
-    from that compilation: the general solve's loops over arrays cost reference counting even
-    where they are not taken (measured: 14 % of the elbow's run).
+    The loops take ``general_body=True`` for bodies of two or more coordinates (the general
+    mass-matrix solve: chains, trees, a free base) and leave it out for one segment on a
+    fixed base, where the acceleration is one division. Left out, it is a compile-time
+    constant and Numba removes the general branch from that compilation: the general solve's
+    loops over arrays cost reference counting even where they are not taken (measured: 14 %
+    of the elbow's run).
     """
-    n = seg.shape[0]
+    n = joints.shape[0]
     if n > 1 and not general_body:
-        raise ValueError("a chain of two or more segments needs general_body=True")
+        raise ValueError("a body of two or more coordinates needs general_body=True")
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -179,7 +198,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
     finder with a prediction from the previous step (see `_predict`). ``general_body``: see
     `check_body_kind`.
     """
-    check_body_kind(seg, general_body)
+    check_body_kind(joints, general_body)
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     size = y0.shape[0]
     y = y0.copy()
@@ -195,7 +214,8 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
     seen4_before = np.full(nu, np.nan)
     levels = np.empty((3, nu))  # profile values e(t) at t, t + h/2, t + h
     torque = np.empty(n)
-    work = np.empty(body_work_size(n))
+    work = np.empty(body_work_size(n, seg))
+    contacts = seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN])
     for u in range(nu):
         levels[0, u] = unit_excitation(0.0, profiles, width, u)
     for step in range(n_steps):
@@ -233,6 +253,8 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                 k[s, j] = stage[n + j]
             if general_body:
                 _general_accelerations(stage, n, torque, seg, joints, work, k, s)
+                if s == 0 and contacts:
+                    _record_contacts(stats, t, h, stage, n, seg, work)
             else:
                 k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
         for u in range(nu):
@@ -254,7 +276,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
 
 
 @njit(cache=True, error_model="numpy")
-def _body_rk4(y, n, h, seg, joints, work, b, y_new, general_body):
+def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats):
     """One RK4 step of the body part (q, q̇) = y[:2n] with joint torques
     τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
     result into y_new[:2n]. ``b`` is the partitioned loop's scratch array."""
@@ -274,6 +296,8 @@ def _body_rk4(y, n, h, seg, joints, work, b, y_new, general_body):
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
+            if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
+                _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
         else:
             b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
                                                         joints)
@@ -392,7 +416,7 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
 
 @njit(cache=True, error_model="numpy")
 def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                         y_new, general_body, dynamics):
+                         y_new, general_body, dynamics, stats):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
     The body stage sees the torque of the muscle stage state and the muscle stage sees the
@@ -427,6 +451,8 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
+            if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
+                _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
         else:
             b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
                                                         joints)
@@ -451,7 +477,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     ``end_exchange``) are switches, True for the one the packed ``coupling`` names and None for
     the other (`step_loop_switches`), so Numba compiles only the code a run needs.
     """
-    check_body_kind(seg, general_body)
+    check_body_kind(joints, general_body)
     if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (sdirk_muscles is not None) or \
             (int(coupling[ORDER]) == EVERY_STAGE) != (stage_exchange is not None):
         raise ValueError("the coupling array and the step loop's switches disagree")
@@ -469,7 +495,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     for i in range(size):
         out[0, i] = y[i]
     b = np.empty((_SCRATCH_ROWS, size))
-    work = np.empty(body_work_size(n))
+    work = np.empty(body_work_size(n, seg))
     q_prev = y0[:n].copy()
     torque_prev = np.empty(n)
     for u in range(nu):
@@ -494,7 +520,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
         stats[NFEV_MUSCLE] += 1
         if stage_exchange is not None:
             _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                                 y1, general_body, dynamics)
+                                 y1, general_body, dynamics, stats)
             stats[NFEV_BODY] += 4
             stats[NFEV_MUSCLE] += 4
             stats[SWEEPS] += 1
@@ -521,9 +547,9 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                     joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
                     for j in range(n):
                         b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                    _body_rk4(y, n, h, seg, joints, work, b, y1, general_body)
+                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats)
                 else:
-                    _body_rk4(y, n, h, seg, joints, work, b, y1, general_body)
+                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats)
                     if order == BODY_FIRST:
                         for j in range(n):
                             b[_Q_SLOPE, j] = y1[j] - y[j]
@@ -583,11 +609,12 @@ def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b
         _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dynamics)
 
 
-def step_loop_switches(monolithic: bool, n_segments: int, coupling,
+def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
                        dynamics: bool = False) -> tuple:
     """The switches of `run_step_loop` for the monolithic (else partitioned, under the packed
-    ``coupling``) technique on a chain of ``n_segments`` whose units have activation
-    dynamics or not (``dynamics``: any unit has; `ChainModel.has_activation_dynamics`).
+    ``coupling``) technique on a body of ``n_coordinates`` (`ChainModel.n_coordinates`) whose
+    units have activation dynamics or not (``dynamics``: any unit has;
+    `ChainModel.has_activation_dynamics`).
 
     Nine values, True or None, in four pairs of which one is True: (monolithic, one segment),
     (monolithic, chain), (partitioned, one segment), (partitioned, chain); SDIRK2 or RK4
@@ -599,7 +626,7 @@ def step_loop_switches(monolithic: bool, n_segments: int, coupling,
     def on(flag):
         return True if flag else None
 
-    chain = n_segments > 1
+    chain = n_coordinates > 1
     sdirk = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
     stage = not monolithic and int(coupling[ORDER]) == EVERY_STAGE
     return (on(monolithic and not chain), on(monolithic and chain),

@@ -113,9 +113,10 @@ def unit_level(excitation, y, i, units, u):
 
 @njit(cache=True, error_model="numpy")
 def flat_arrays(seg, joints, units, profiles):
-    """(n joints, n units, profile row width, flat units, flat joints, flat profiles) of the
-    2-D packed arrays of `PackedChain`, as the loops read them."""
-    return (seg.shape[0], units.shape[0], profiles.shape[1], units.ravel(), joints.ravel(),
+    """(n coordinates, n units, profile row width, flat units, flat joints, flat profiles) of
+    the 2-D packed arrays of `PackedChain`, as the loops read them (the joint array has a row
+    per coordinate)."""
+    return (joints.shape[0], units.shape[0], profiles.shape[1], units.ravel(), joints.ravel(),
             profiles.ravel())
 
 
@@ -144,7 +145,7 @@ def chain_derivative(t, y, seg, joints, units, profiles):
     if n == 1:
         dy[1] = single_segment_acceleration(y[0], torque[0], seg, joints)
     else:
-        work = np.empty(body_work_size(n))
+        work = np.empty(body_work_size(n, seg))
         joint_accelerations(y, n, torque, seg, joints, work)
         for k in range(n):  # a loop: a slice assignment compiles a shape check (1.6 s cold)
             dy[n + k] = work[n * n + k]

@@ -8,7 +8,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from ..model.body import JOINT_ROW_SIZE, passive_torque
+from ..model.body import (
+    JOINT_ROW_SIZE,
+    body_work_size,
+    contacts_start,
+    joint_accelerations,
+    passive_torque,
+)
 from ..model.chain import UNIT_ROW_SIZE, ChainModel, PackedChain
 from ..model.state import unit_state
 from ..model.torque_generator import (
@@ -29,7 +35,8 @@ from .rates import (
 
 
 @njit(cache=True)
-def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joint_out):
+def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joint_out,
+                       contact_out):
     """Per row of ``states`` (y): fill ``unit_out`` (rows × U × 5) with each unit's torque T
     (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s), CE time constant τ (s) and
     profile value e(t);
@@ -37,9 +44,17 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
     torque T_p (N·m). Takes the 2-D arrays of `PackedChain`."""
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     torque = np.empty(n)
+    n_contacts = contact_out.shape[1]
+    work = np.empty(body_work_size(n, seg))
+    start = contacts_start(n)
     for i in range(time.shape[0]):
         y = states[i]
         joint_muscle_torques(y, y, units, nu, torque, n)
+        if n_contacts > 0:
+            joint_accelerations(y, n, torque, seg, joints, work)
+            for c in range(n_contacts):
+                for k in range(4):
+                    contact_out[i, c, k] = work[start + 4 * c + k]
         for j in range(n):
             joint_out[i, j, 0] = torque[j]
             joint_out[i, j, 1] = passive_torque(y[j], joints, j * JOINT_ROW_SIZE)
@@ -83,11 +98,14 @@ class RunCost:
 class StabilityReport:
     """The stability guard of the explicit solvers.
 
-    ``max_step_ratio`` is the largest step/τ seen (τ: a unit's CE time constant), at time
-    ``time`` in unit ``unit``. ``exceeded`` is True when it passed the RK4 limit 2.785: the
-    motion is then probably wrong although bounded. ``largest_safe_step`` (s) is the step
-    found by running (``verified_step``, see `torquesim.solvers.simulation.verified_step`)
-    when the run failed or broke the limit; otherwise the estimate 2.785·min τ of this run."""
+    ``max_step_ratio`` is the largest step/τ seen (τ: a unit's CE time constant, or a ground
+    contact's, `contact_time_constant`), at time ``time`` in unit ``unit`` (or "ground
+    contact at POINT"): of the two, the one nearer its limit (a contact's is always RK4's,
+    since the body part is explicit in every technique). ``exceeded`` is True when it
+    passed the RK4 limit 2.785: the motion is then probably wrong although bounded.
+    ``largest_safe_step`` (s) is the step found by running (``verified_step``, see
+    `torquesim.solvers.simulation.verified_step`) when the run failed or broke the limit;
+    otherwise the estimate 2.785·min τ of this run."""
 
     max_step_ratio: float
     time: float
@@ -110,8 +128,10 @@ class StabilityReport:
         return min(safe, 0.5 * self.step) if self.exceeded else safe
 
     def message(self) -> str:
-        head = (f"step {self.step * 1e3:g} ms exceeds the RK4 stability limit in the "
-                f"{self.unit} unit at t = {self.time:.4f} s (step/τ = {self.max_step_ratio:.3g} "
+        where = self.unit if self.unit.startswith("ground contact") else \
+            f"the {self.unit} unit"
+        head = (f"step {self.step * 1e3:g} ms exceeds the RK4 stability limit in "
+                f"{where} at t = {self.time:.4f} s (step/τ = {self.max_step_ratio:.3g} "
                 f"> {RK4_STABILITY_LIMIT:.3f}); the motion is probably wrong although bounded. ")
         safe = self.largest_safe_step
         if self.verified_step == 0.0:
@@ -179,23 +199,27 @@ class SimulationResult:
     @property
     def theta(self) -> np.ndarray:
         """Angle of the first (for the elbow: the only) joint, rad."""
-        return self.states[:, 0]
+        return self.q[:, 0]
 
     @property
     def omega(self) -> np.ndarray:
         """Angular velocity of the first joint, rad/s."""
-        return self.states[:, self.model.n_joints]
+        return self.qd[:, 0]
 
     def angle(self, joint: str) -> np.ndarray:
         """Angle of the joint named ``joint``, rad."""
-        return self.states[:, self.model.joint_index(joint)]
+        return self.q[:, self.model.joint_index(joint)]
 
-    def _derived(self) -> tuple[np.ndarray, np.ndarray]:
-        n, nu = self.model.n_joints, self.model.n_units
+    def _derived(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per unit (T, a, ω_cc, τ, e), per joint (net muscle torque, end-stop torque) and
+        per contact (F_x, F_y, x, y) over the run."""
+        nu, nb = self.model.n_units, self.model.n_base
         unit_out = np.empty((self.time.size, nu, 5))
-        joint_out = np.empty((self.time.size, n, 2))
-        derived_quantities(self.time, self.states, *self.packed, unit_out, joint_out)
-        return unit_out, joint_out
+        joint_out = np.empty((self.time.size, self.model.n_coordinates, 2))
+        contact_out = np.zeros((self.time.size, len(self.model.contacts), 4))
+        derived_quantities(self.time, self.states, *self.packed, unit_out, joint_out,
+                           contact_out)
+        return unit_out, joint_out[:, nb:], contact_out
 
     def columns(self) -> dict[str, np.ndarray]:
         """The output table as ordered columns, SI units, angles in rad: ``time``; per joint
@@ -204,8 +228,13 @@ class SimulationResult:
         (muscles, flexion positive) and ``torque_passive_<joint>`` (end stops); per unit
         ``activation_<unit>`` (floored at 0.01) and ``omega_cc_<unit>`` (concentric
         positive). A unit with activation dynamics adds its state ``activation_state_<unit>``
-        after its θ_cc and its profile value ``excitation_<unit>``."""
-        unit_out, joint_out = self._derived()
+        after its θ_cc and its profile value ``excitation_<unit>``. A free base starts with
+        ``base_x``, ``base_y`` (m) and their speeds; named points add ``<point>_x``,
+        ``<point>_y`` and the centre of mass ``com_x``, ``com_y``, ``com_speed_x``,
+        ``com_speed_y`` (m, m/s); ground contacts add their forces ``grf_x_<point>``,
+        ``grf_y_<point>`` and the totals ``grf_x``, ``grf_y`` (N) with the centre of pressure
+        ``cop_x`` (m; NaN in flight)."""
+        unit_out, joint_out, contact_out = self._derived()
         m = self.model
         cols = {"time": self.time}
         for name, values in zip(m.state_names(), self.states.T, strict=True):
@@ -222,11 +251,38 @@ class SimulationResult:
         for unit in m.units:
             if unit.activation_dynamics is not None:
                 cols[f"excitation_{unit.name}"] = unit_out[:, m.unit_index(unit.name), 4]
+        if m.points or m.base == "free":
+            where = self.kinematics()
+            for i, point in enumerate(m.points):
+                cols[f"{point.name}_x"] = where["points"][:, i, 0]
+                cols[f"{point.name}_y"] = where["points"][:, i, 1]
+            for axis, name in enumerate("xy"):
+                cols[f"com_{name}"] = where["com"][:, axis]
+            for axis, name in enumerate("xy"):
+                cols[f"com_speed_{name}"] = where["com_velocity"][:, axis]
+        if m.contacts:
+            for c, contact in enumerate(m.contacts):
+                cols[f"grf_x_{contact.point}"] = contact_out[:, c, 0]
+                cols[f"grf_y_{contact.point}"] = contact_out[:, c, 1]
+            total = contact_out[:, :, 1].sum(axis=1)
+            cols["grf_x"] = contact_out[:, :, 0].sum(axis=1)
+            cols["grf_y"] = total
+            with np.errstate(invalid="ignore", divide="ignore"):
+                cols["cop_x"] = np.where(total > 0, (contact_out[:, :, 1]
+                                                     * contact_out[:, :, 2]).sum(axis=1)
+                                         / total, np.nan)
         return cols
+
+    def kinematics(self) -> dict[str, np.ndarray]:
+        """Positions and velocities over the run (`ChainModel.kinematics`): joints, centres,
+        points, the centre of mass, m and m/s."""
+        layout = self.model.layout
+        return self.model.kinematics(self.states[:, layout.coordinates],
+                                     self.states[:, layout.coordinate_speeds])
 
     def time_constants(self) -> dict[str, np.ndarray]:
         """Each unit's CE time constant τ (s) over the motion; inf where the CE is clamped."""
-        unit_out, _ = self._derived()
+        unit_out, _, _ = self._derived()
         return {unit.name: unit_out[:, u, 3] for u, unit in enumerate(self.model.units)}
 
     def to_dataframe(self):

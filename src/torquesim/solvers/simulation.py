@@ -155,7 +155,7 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     else:
         label, exchange = coupling.label(), coupling.to_array()
         method = "partitioned"
-    switches = fs.step_loop_switches(method == "monolithic", model.n_joints, exchange,
+    switches = fs.step_loop_switches(method == "monolithic", model.n_coordinates, exchange,
                                      model.has_activation_dynamics)
     # A zero-step call compiles the loop (or loads it from the disk cache) outside the timing.
     fs.run_step_loop(*switches, y0, float(step), 0, *packed, exchange, out, fs.new_stats())
@@ -166,10 +166,16 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     times = np.arange(done + 1) * step
     implicit = method == "partitioned" and coupling.implicit_muscles
     stability = StabilityReport(float(stats[fs.WORST_RATIO]), float(stats[fs.WORST_TIME]),
-                                model.units[int(stats[fs.WORST_UNIT])].name,
+                                model.units[int(stats[fs.WORST_UNIT])].name
+                                if model.units else "",
                                 step / (coupling.muscle_substeps if method == "partitioned"
                                         else 1),
                                 math.inf if implicit else fs.RK4_STABILITY_LIMIT)
+    contact_ratio = float(stats[fs.CONTACT_RATIO])
+    if contact_ratio / fs.RK4_STABILITY_LIMIT > stability.max_step_ratio / stability.limit:
+        point = model.contacts[int(stats[fs.CONTACT_INDEX])].point
+        stability = StabilityReport(contact_ratio, float(stats[fs.CONTACT_TIME]),
+                                    f"ground contact at {point}", step)
     status, message = "success", ""
     if stats[fs.STATUS] != fs.OK:
         what = "went non-finite" if stats[fs.STATUS] == fs.NON_FINITE else \
@@ -202,13 +208,16 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
 def _out_of_range(model: ChainModel, y) -> str:
     """Which joint left the physically possible range in state ``y``, in words."""
     limits = model.speed_limits()
-    n = model.n_joints
+    n, nb = model.n_coordinates, model.n_base
     for k, joint in enumerate(model.joints):
-        angle = math.degrees(y[k])
-        if abs(y[n + k]) > limits[k]:
+        i = nb + k
+        angle = math.degrees(y[i])
+        if abs(y[n + i]) > limits[i]:
             return (f"left the physically possible range ({joint.coordinate} speed "
-                    f"{y[n + k]:.3g} rad/s, beyond the limit {limits[k]:g} rad/s)")
-        if not (joint.endstop_lower_angle - 2 * math.pi <= y[k]
+                    f"{y[n + i]:.3g} rad/s, beyond the limit {limits[i]:g} rad/s)")
+        if nb and k == 0:
+            continue  # a free base's angle has no end stops
+        if not (joint.endstop_lower_angle - 2 * math.pi <= y[i]
                 <= joint.endstop_upper_angle + 2 * math.pi):
             return (f"left the physically possible range ({joint.coordinate} = {angle:.4g}°, "
                     "more than a full turn beyond its end stops)")

@@ -1,0 +1,125 @@
+"""Named points on segments and their contact with the ground line y = 0 (docs/model.md §9).
+
+A point sits on a segment at ``distance`` along its axis from its proximal joint and
+``offset`` perpendicular to it (positive on the side the segment's angle turns towards, i.e.
+forwards, +x, when the segment hangs straight down). A ground contact at a point pushes when
+the point is below the ground, with penetration δ = −y ≥ 0 and its rate δ̇ = −ẏ:
+
+    normal      F_y = max(0, k·δⁿ·(1 + c·δ̇))                     (Hunt & Crossley 1975)
+    tangential  F_x = −μ·F_y·v_x / √(v_x² + v_s²)                   (regularised Coulomb)
+
+with v_x the point's horizontal velocity. F_y never pulls (the max), and F_x never exceeds
+μ·F_y; both vanish as soon as the point leaves the ground.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from numba import njit
+
+from ..errors import ModelError, check_range
+
+#: Columns of a packed contact row (`ChainModel.segment_array`, after the segment rows).
+(CONTACT_SEGMENT, CONTACT_DISTANCE, CONTACT_OFFSET, CONTACT_STIFFNESS, CONTACT_EXPONENT,
+ CONTACT_DAMPING, CONTACT_FRICTION, CONTACT_SLIP_SPEED) = range(8)
+CONTACT_ROW_SIZE = 8
+
+
+@dataclass(frozen=True)
+class Point:
+    """A named point fixed on a segment (toe, heel, hip…), reported in the results.
+
+    Attributes
+    ----------
+    name : str
+    segment : str
+        Name of the segment it is fixed on.
+    distance : float
+        Along the segment axis from its proximal joint, m. Bounds [-10, 10].
+    offset : float
+        Perpendicular to the axis, m, positive forwards (+x) when the segment hangs straight
+        down. Default 0. Bounds [-10, 10].
+    """
+
+    name: str
+    segment: str
+    distance: float
+    offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_range("distance", self.distance, -10.0, 10.0, unit="m")
+        check_range("offset", self.offset, -10.0, 10.0, unit="m")
+
+
+@dataclass(frozen=True)
+class GroundContact:
+    """A compliant contact of a point with the ground line y = 0 (module docstring).
+
+    Attributes
+    ----------
+    point : str
+        Name of the point in contact.
+    stiffness : float
+        k, N/mⁿ. Bounds (0, 1e9]. Default 5e6: with n = 1.5 a 70 kg body standing on two
+        such points sinks 1.7 mm.
+    exponent : float
+        n. Default 1.5 (Hertzian contact). Bounds [1, 3].
+    damping : float
+        c, s/m (Hunt & Crossley 1975, J Appl Mech 42:440). Default 1.0: a landing at 1 m/s
+        doubles the spring force. Bounds [0, 100].
+    friction : float
+        μ. Default 0.8 (a shoe sole on a floor). Bounds [0, 5].
+    slip_speed : float
+        v_s, m/s: the slip speed under which friction is regularised. Default 0.01.
+        Bounds (0, 1].
+    """
+
+    point: str
+    stiffness: float = 5.0e6
+    exponent: float = 1.5
+    damping: float = 1.0
+    friction: float = 0.8
+    slip_speed: float = 0.01
+
+    def __post_init__(self) -> None:
+        check_range("stiffness", self.stiffness, 0.0, 1e9, low_open=True, unit="N/m^n")
+        check_range("exponent", self.exponent, 1.0, 3.0)
+        check_range("damping", self.damping, 0.0, 100.0, unit="s/m")
+        check_range("friction", self.friction, 0.0, 5.0)
+        check_range("slip_speed", self.slip_speed, 0.0, 1.0, low_open=True, unit="m/s")
+        if not isinstance(self.point, str) or not self.point:
+            raise ModelError("point", "must name a point")
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def contact_force(height, vertical_speed, horizontal_speed, rows, c):
+    """(F_x, F_y), N, of the contact in packed row ``rows[c]`` at a point at ``height`` (m)
+    moving at (``horizontal_speed``, ``vertical_speed``) m/s (module docstring)."""
+    depth = -height
+    if depth <= 0.0:
+        return 0.0, 0.0
+    normal = rows[c, CONTACT_STIFFNESS] * depth ** rows[c, CONTACT_EXPONENT] \
+        * (1.0 - rows[c, CONTACT_DAMPING] * vertical_speed)
+    if normal <= 0.0:
+        return 0.0, 0.0
+    slip = rows[c, CONTACT_SLIP_SPEED]
+    tangential = -rows[c, CONTACT_FRICTION] * normal * horizontal_speed \
+        / math.sqrt(horizontal_speed * horizontal_speed + slip * slip)
+    return tangential, normal
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def contact_stiffness(height, vertical_speed, rows, c):
+    """(∂F_y/∂δ in N/m, ∂F_y/∂δ̇ in N·s/m) of the contact's normal force at ``height``: the
+    spring and damper the stability guard sees (0, 0 off the ground)."""
+    depth = -height
+    if depth <= 0.0:
+        return 0.0, 0.0
+    n = rows[c, CONTACT_EXPONENT]
+    spring = rows[c, CONTACT_STIFFNESS] * depth ** n
+    damping = rows[c, CONTACT_DAMPING]
+    if spring * (1.0 - damping * vertical_speed) <= 0.0:
+        return 0.0, 0.0
+    return n * spring / depth * (1.0 - damping * vertical_speed), spring * damping
