@@ -199,7 +199,7 @@ def test_simulate_animates_the_motion_as_a_stick_figure(tmp_path, capsys):
     """25 frames per simulated second, the stick figure at the simulated angles."""
     from PIL import Image
 
-    from torquesim.plots import joint_positions
+    from torquesim.plots import segment_lines
 
     gif = tmp_path / "curl.gif"
     assert main(["simulate", "--duration", "0.4", "--animate", str(gif)]) == 0
@@ -211,5 +211,6 @@ def test_simulate_animates_the_motion_as_a_stick_figure(tmp_path, capsys):
     assert "--animate" in capsys.readouterr().err
     # the drawn geometry: a straight, hanging elbow chain ends one segment length below
     model = ts.load_model("builtin:arm-raise")
-    points = joint_positions(model, [[0.0, 0.0]])
-    assert points[0, 1] == pytest.approx([0.0, -model.segments[0].length])
+    lines = segment_lines(model, [[0.0, 0.0]])
+    assert lines[0, 0, 1] == pytest.approx([0.0, -model.segments[0].length])
+    assert lines[0, 1, 0] == pytest.approx(lines[0, 0, 1])  # the forearm starts there

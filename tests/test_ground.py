@@ -325,3 +325,26 @@ def test_bad_contact_parameters_and_postures_name_the_field():
         model.replace(units=(*model.units, unit.__class__("spin", "foot_ground", 1,
                                                           unit.parameters, unit.activation)))
     assert info.value.field == "units[6].joint" and "free base" in str(info.value)
+
+
+def test_jump_events_and_the_grf_file(jump, tmp_path, capsys):
+    events = jump.ground_events()
+    c = jump.columns()
+    i = int(round(events.take_off / jump.step))
+    assert c["grf_y"][i] == 0.0 and c["grf_y"][i - 1] > 0.0
+    assert events.landing is None  # the preset ends in the air
+    assert events.flight_height == pytest.approx(c["com_speed_y"][i] ** 2 / (2 * G))
+    assert events.rise == pytest.approx(c["com_y"].max() - c["com_y"][0])
+    from torquesim.cli import main
+
+    path = tmp_path / "grf.mot"
+    assert main(["simulate", "--model", "builtin:squat-jump", "--step", "0.025ms",
+                 "--grf", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "take-off      t = 0.349" in out and "body weights" in out
+    table = ts.read_table(path)
+    np.testing.assert_allclose(table["ground_force_vy"], c["grf_y"], rtol=1e-12)
+    np.testing.assert_allclose(table["toe_ground_force_vy"] + table["heel_ground_force_vy"],
+                               table["ground_force_vy"], rtol=1e-12)
+    assert main(["simulate", "--grf", str(tmp_path / "x.mot")]) == 2  # the elbow: no contacts
+    assert "--grf" in capsys.readouterr().err and not (tmp_path / "x.mot").exists()

@@ -63,7 +63,8 @@ def cli():
 
 @cli.command(short_help="Simulate a model; print or write the motion.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
-              help="Model: a TOML file or a preset builtin:elbow-curl|knee-extension|arm-raise "
+              help="Model: a TOML file or a preset builtin:elbow-curl|knee-extension|arm-raise|"
+                   "squat-jump "
                    "(see 'torquesim model').")
 @click.option("--method", type=click.Choice(METHODS),
               default="monolithic", show_default=True,
@@ -83,12 +84,16 @@ def cli():
 @click.option("--animate", "animation_path", type=click.Path(dir_okay=False),
               help="Write the motion as a stick-figure animation (.gif), 25 frames per "
                    "simulated second.")
+@click.option("--grf", "grf_path", type=click.Path(dir_okay=False),
+              help="Models with ground contacts: write the ground reaction forces as an "
+                   "OpenSim external-loads .mot (total at the centre of pressure, and per "
+                   "contact point).")
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Fixed-step methods: estimate the max angle error against a run at twice "
                    "the step (half a run's work; at half the step when that is above the "
                    "tolerance) and warn above this many degrees; 0 turns the estimate off.")
 def simulate(model_path, method, step, duration, out_path, plot_path, animation_path,
-             tolerance):
+             grf_path, tolerance):
     """Simulate the model and print a summary (or write --out / --plot)."""
     import numpy as np
 
@@ -99,7 +104,11 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     _check_output(out_path, (".csv", ".sto", ".mot"), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
     _check_output(animation_path, (".gif",), "--animate")
+    _check_output(grf_path, (".mot",), "--grf")
     model = load_model(model_path)
+    if grf_path and not model.contacts:
+        raise ModelError("--grf", f"{model.name} has no ground contacts; allowed: a model "
+                         "with [[contacts]]")
     fixed = method != "reference"
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
     _announce_size(model, method, step, duration, out_path)
@@ -122,6 +131,10 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
         from .plots import animate_result
 
         animate_result(result, animation_path)
+    if grf_path:
+        from .io.tables import save_ground_reactions
+
+        save_ground_reactions(result, grf_path)
     lines = [
         f"model         {result.model.name} ({result.model.n_joints} joint"
         f"{'s' if result.model.n_joints > 1 else ''}, {result.model.n_units} units)",
@@ -136,6 +149,9 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
         lines.append(f"{joint.coordinate:13s} min {math.degrees(angle[low]):.4f} deg at t = "
                      f"{result.time[low]:.4f} s, peak {math.degrees(angle[high]):.4f} deg at "
                      f"t = {result.time[high]:.4f} s, final {math.degrees(angle[-1]):.4f} deg")
+    events = result.ground_events()
+    if events is not None:
+        lines += events.summary_lines()
     lines += [
         f"steps         {result.cost.steps if result.cost.steps >= 0 else 'adaptive'}",
         f"rhs evals     body {result.cost.rhs_body}, muscle {result.cost.rhs_muscle}",
@@ -161,6 +177,8 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
         lines.append(f"wrote         {plot_path}")
     if animation_path:
         lines.append(f"wrote         {animation_path}")
+    if grf_path:
+        lines.append(f"wrote         {grf_path}")
     click.echo("\n".join(lines))
 
 

@@ -85,14 +85,13 @@ def plot_model(model):
     fig = _figure(figsize=(13.0, 6.2))
     grid = fig.add_gridspec(2, 3, width_ratios=(1.3, 1, 1))
     ax = fig.add_subplot(grid[:, 0])
-    phi = model.absolute_angles(np.array([j.initial_angle for j in model.joints]))
-    x, y = [0.0], [0.0]
+    start_state = model.initial_state().state[:model.n_coordinates]
+    pose = model.kinematics(start_state)
+    phi = pose["angles"]
     for k, seg in enumerate(model.segments):
         direction = np.array([np.sin(phi[k]), -np.cos(phi[k])])
-        length = seg.length if seg.length > 0 else max(
-            [seg.com_distance * 2, *(ld.distance for ld in seg.loads)])
-        start = np.array([x[-1], y[-1]])
-        end = start + length * direction
+        start = pose["joints"][k]
+        end = start + _drawn_length(seg) * direction
         ax.plot([start[0], end[0]], [start[1], end[1]], color="k", lw=3, solid_capstyle="round")
         com = start + seg.com_distance * direction
         ax.plot(*com, marker="o", ms=7, mfc="white", mec="k")
@@ -110,8 +109,12 @@ def plot_model(model):
                  + "\n".join(f"{'+' if u.direction == 1 else '−'} {u.name}" for u in units))
         ax.annotate(label, start, xytext=(-16, 0), textcoords="offset points", ha="right",
                     va="center", fontsize="small", color="tab:blue")
-        x.append(end[0])
-        y.append(end[1])
+    for point, spot in zip(model.points, pose["points"], strict=True):
+        ax.plot(*spot, marker="^", ms=8, color="tab:orange")
+        ax.annotate(point.name, spot, xytext=(6, -10), textcoords="offset points",
+                    fontsize="small", color="tab:orange")
+    if model.contacts:
+        ax.axhline(0.0, color="tab:brown", lw=2)
     ax.annotate("", xy=(0.93, 0.78), xytext=(0.93, 0.95), xycoords="axes fraction",
                 arrowprops={"arrowstyle": "->", "color": "grey"})
     ax.text(0.91, 0.86, f"g = {model.gravity:g} m/s²", transform=ax.transAxes, ha="right",
@@ -119,7 +122,9 @@ def plot_model(model):
     ax.set_aspect("equal", adjustable="datalim")
     ax.margins(0.6, 0.15)
     ax.set_title(textwrap.fill(f"{model.name} at its initial angles; + flexor, − extensor; "
-                               "flexion positive", 48), fontsize="medium")
+                               "flexion positive"
+                               + ("; ▲ points, ground y = 0" if model.contacts else ""), 48),
+                 fontsize="medium")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     axes = [fig.add_subplot(grid[r, c]) for r in range(2) for c in (1, 2)]
@@ -131,7 +136,8 @@ def plot_model(model):
         dif = np.array([differential_activation(v, p) for v in w])
         a_v.plot(w, tet, label=unit.name)
         a_d.plot(w, dif * tet, label=unit.name)
-        theta = np.linspace(0.0, np.pi, 181)
+        optimum = unit.parameters.optimal_angle
+        theta = np.linspace(min(0.0, optimum - 1.5), max(np.pi, optimum + 1.5), 181)
         a_t.plot(np.degrees(theta), [torque_angle(th, p) for th in theta], label=unit.name)
         stretch = np.linspace(-0.02, 0.2, 111)
         a_s.plot(stretch, [unit_torque(s_, p) for s_ in stretch], label=unit.name)
@@ -150,46 +156,89 @@ def plot_model(model):
     return fig
 
 
-def joint_positions(model, q) -> np.ndarray:
-    """Positions (m) of the base, every joint and the end of the last segment for joint
-    angles ``q`` (rad, rows of time × joints): shape (time, segments + 1, 2), the base at the
-    origin, y up, segments hanging down at zero absolute angle."""
-    q = np.atleast_2d(q)
-    phi = model.base_angle + np.cumsum(q, axis=1)
-    lengths = np.array([seg.length if seg.length > 0 else
-                        max([2 * seg.com_distance, *(ld.distance for ld in seg.loads)])
-                        for seg in model.segments])
-    steps = np.stack([np.sin(phi), -np.cos(phi)], axis=2) * lengths[None, :, None]
-    return np.concatenate([np.zeros((q.shape[0], 1, 2)), np.cumsum(steps, axis=1)], axis=1)
+def _drawn_length(seg) -> float:
+    """A segment is drawn to its next joint, or when it has none over its extent."""
+    return seg.length if seg.length > 0 else seg.extent
+
+
+def segment_lines(model, coordinates) -> np.ndarray:
+    """Each segment as a line from its proximal joint to the next joint (the last over its
+    extent, `Segment.extent`), m,
+    for coordinates (time × `ChainModel.n_coordinates`): shape (time, segments, 2, 2), y up,
+    a segment hanging down at zero absolute angle (`ChainModel.kinematics`)."""
+    where = model.kinematics(np.atleast_2d(coordinates))
+    phi = where["angles"]
+    reach = np.array([_drawn_length(seg) for seg in model.segments])
+    ends = where["joints"] + reach[None, :, None] * np.stack([np.sin(phi), -np.cos(phi)],
+                                                             axis=2)
+    return np.stack([where["joints"], ends], axis=2)
 
 
 def animate_result(result, path, *, fps: int = 25) -> None:
     """Write the motion as a stick-figure animation (GIF by Pillow), ``fps`` frames per second
-    of simulated time, each frame with the time and every joint's angle in degrees."""
+    of simulated time, each frame with the time and every joint's angle in degrees; for a
+    body on the ground also the ground line, the centre of mass and the total ground reaction
+    force as an arrow at the centre of pressure (1 m per body weight)."""
     from matplotlib import animation
+    from matplotlib.collections import LineCollection
 
+    model = result.model
     times = np.arange(0.0, result.time[-1] + 1e-12, 1.0 / fps)
-    q = np.column_stack([np.interp(times, result.time, result.q[:, j])
-                         for j in range(result.model.n_joints)])
-    points = joint_positions(result.model, q)
+    coords = np.column_stack([np.interp(times, result.time, result.states[:, i])
+                              for i in range(model.n_coordinates)])
+    q = coords[:, model.n_base:]
+    lines = segment_lines(model, coords)
+    where = model.kinematics(coords)
     fig = _figure(figsize=(5.0, 5.0))
     ax = fig.add_subplot()
-    span = np.abs(points).max() * 1.15
-    ax.set_xlim(-span, span)
-    ax.set_ylim(-span, span)
+    xy = lines.reshape(-1, 2)
+    if model.contacts:
+        columns = result.columns()
+        weight = model.gravity * sum(seg.total_mass for seg in model.segments)
+        grf = np.column_stack([np.interp(times, result.time, columns[name])
+                               for name in ("grf_x", "grf_y")]) / max(weight, 1e-12)
+        cop = np.interp(times, result.time, np.nan_to_num(columns["cop_x"]))
+        ax.axhline(0.0, color="tab:brown", lw=2)
+        xy = np.vstack([xy, np.column_stack([cop + grf[:, 0], grf[:, 1]])])
+    low, high = xy.min(axis=0), xy.max(axis=0)
+    middle, span = 0.5 * (low + high), 0.6 * max(high - low) + 0.05
+    ax.set_xlim(middle[0] - span, middle[0] + span)
+    ax.set_ylim(middle[1] - span, middle[1] + span)
     ax.set_aspect("equal")
     ax.grid(alpha=0.3)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    (line,) = ax.plot([], [], "-o", color="k", lw=3, ms=7, mfc="tab:blue")
+    bones = LineCollection(lines[0], colors="k", linewidths=3, capstyle="round")
+    ax.add_collection(bones)
+    (joints,) = ax.plot([], [], "o", color="tab:blue", ms=6)
+    artists = [bones, joints]
+    if model.points:
+        (marks,) = ax.plot([], [], "^", color="tab:orange", ms=6)
+        artists.append(marks)
+    if model.base == "free":
+        (com,) = ax.plot([], [], "o", ms=9, mfc="white", mec="tab:red", mew=2)
+        artists.append(com)
+    if model.contacts:
+        arrow = ax.quiver([0.0], [0.0], [0.0], [0.0], angles="xy", scale_units="xy", scale=1,
+                          color="tab:green", width=0.012)
+        artists.append(arrow)
     label = ax.text(0.02, 0.97, "", transform=ax.transAxes, va="top", fontsize="small")
-    names = [j.coordinate for j in result.model.joints]
+    artists.append(label)
+    names = [j.coordinate for j in model.joints]
 
     def frame(i):
-        line.set_data(points[i, :, 0], points[i, :, 1])
+        bones.set_segments(lines[i])
+        joints.set_data(where["joints"][i, :, 0], where["joints"][i, :, 1])
+        if model.points:
+            marks.set_data(where["points"][i, :, 0], where["points"][i, :, 1])
+        if model.base == "free":
+            com.set_data([where["com"][i, 0]], [where["com"][i, 1]])
+        if model.contacts:
+            arrow.set_offsets([[cop[i], 0.0]])
+            arrow.set_UVC([grf[i, 0]], [grf[i, 1]])
         label.set_text(f"t = {times[i]:.2f} s\n" + "\n".join(
             f"{name} {np.degrees(angle):.1f}°" for name, angle in zip(names, q[i], strict=True)))
-        return line, label
+        return artists
 
     ax.set_title(f"{result.model.name}, {result.method}", fontsize="medium")
     movie = animation.FuncAnimation(fig, frame, frames=len(times), blit=True)

@@ -53,6 +53,35 @@ def write_table(path, columns: dict[str, np.ndarray], *, name: str = "torquesim"
     return write_atomic(path, lambda tmp: _write_sto(tmp, columns, name, in_degrees), field)
 
 
+def save_ground_reactions(result, path, field: str = "--grf") -> Path:
+    """Write a run's ground reaction forces as an OpenSim external-loads data file (.mot,
+    forces in N, points in m, y up, z = 0 in the sagittal plane): the total as
+    ``ground_force_v{x,y,z}`` at the centre of pressure ``ground_force_p{x,y,z}`` (0 in
+    flight) with ``ground_torque_{x,y,z}`` = 0, and each contact as ``<point>_ground_force_*``
+    at its point, so that an ExternalLoads file can reference either."""
+    if not result.model.contacts:
+        raise ModelError(field, f"{result.model.name} has no ground contacts; allowed: a "
+                         "model with [[contacts]]")
+    if table_kind(path, field) != "sto" or not str(path).endswith(".mot"):
+        raise ModelError(field, f"{str(path)!r}: allowed a .mot file")
+    c = result.columns()
+    zero = np.zeros_like(result.time)
+    columns = {"time": result.time}
+
+    def force(prefix, fx, fy, px, py):
+        columns.update({f"{prefix}ground_force_vx": fx, f"{prefix}ground_force_vy": fy,
+                        f"{prefix}ground_force_vz": zero, f"{prefix}ground_force_px": px,
+                        f"{prefix}ground_force_py": py, f"{prefix}ground_force_pz": zero})
+
+    force("", c["grf_x"], c["grf_y"], np.nan_to_num(c["cop_x"]), zero)
+    columns.update({"ground_torque_x": zero, "ground_torque_y": zero, "ground_torque_z": zero})
+    for contact in result.model.contacts:
+        name = contact.point
+        force(f"{name}_", c[f"grf_x_{name}"], c[f"grf_y_{name}"], c[f"{name}_x"],
+              c[f"{name}_y"])
+    return write_table(path, columns, name=f"{result.model.name}_grf", field=field)
+
+
 def csv_cell(value) -> str:
     """One CSV cell: empty for None, floats in full precision (``repr``), tuples joined by
     ``;``, anything else as ``str``."""

@@ -812,7 +812,7 @@ class ChainModel:
         centres = joints + lever[None, :, None] * axis
         centre_v = joint_v + lever[None, :, None] * swing
         index = {seg.name: k for k, seg in enumerate(self.segments)}
-        on = [index[pt.segment] for pt in self.points]
+        on = np.array([index[pt.segment] for pt in self.points], dtype=int)
         d = np.array([pt.distance for pt in self.points])[None, :, None]
         e = np.array([pt.offset for pt in self.points])[None, :, None]
         points = joints[:, on] + d * axis[:, on] + e * normal[:, on]

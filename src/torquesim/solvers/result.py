@@ -74,6 +74,44 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
 
 
 @dataclass(frozen=True)
+class GroundEvents:
+    """What a run of a body on the ground did (`SimulationResult.ground_events`).
+
+    ``take_off``: the first sample (s) at which every contact is unloaded after one was
+    loaded; ``landing``: the first loaded sample after it (None: not within the run).
+    ``rise``: the centre of mass's highest point above its start, m, at ``apex_time`` (s);
+    ``flight_height``: v²/(2g) of its vertical speed at take-off, m (the height the flight
+    phase adds; None without a take-off). ``peak_force``: the largest total vertical ground
+    reaction force, N, at ``peak_time``; ``weight``: body weight, N."""
+
+    take_off: float | None
+    landing: float | None
+    rise: float
+    apex_time: float
+    flight_height: float | None
+    peak_force: float
+    peak_time: float
+    weight: float
+
+    def summary_lines(self) -> list[str]:
+        """The events as the command line's summary prints them."""
+        lines = []
+        if self.take_off is None:
+            lines.append("take-off      none (some contact stays loaded)")
+        else:
+            lines.append(f"take-off      t = {self.take_off:.4f} s; flight adds "
+                         f"{self.flight_height:.4f} m (v²/2g of the take-off speed)")
+        lines.append(f"CoM rise      {self.rise:.4f} m above the start, apex at t = "
+                     f"{self.apex_time:.4f} s")
+        lines.append(f"peak GRF      {self.peak_force:.1f} N ({self.peak_force / self.weight:.2f} "
+                     f"body weights) at t = {self.peak_time:.4f} s")
+        if self.take_off is not None:
+            lines.append("landing       " + (f"t = {self.landing:.4f} s" if self.landing is not None
+                                            else "not within the run"))
+        return lines
+
+
+@dataclass(frozen=True)
 class RunCost:
     """What a run cost: deterministic work counts and the wall time (s).
 
@@ -272,6 +310,31 @@ class SimulationResult:
                                                      * contact_out[:, :, 2]).sum(axis=1)
                                          / total, np.nan)
         return cols
+
+    def ground_events(self) -> GroundEvents | None:
+        """Take-off, landing and jump height of a body on the ground (None without contacts):
+        see `GroundEvents`."""
+        m = self.model
+        if not m.contacts:
+            return None
+        c = self.columns()
+        loaded = c["grf_y"] > 0.0
+        weight = m.gravity * sum(seg.total_mass for seg in m.segments)
+        peak = int(np.argmax(c["grf_y"]))
+        rise = float(c["com_y"].max() - c["com_y"][0])
+        take_off = landing = None
+        flight = None
+        was_loaded = np.maximum.accumulate(loaded)
+        off = np.flatnonzero(~loaded & was_loaded)
+        if off.size:
+            i = int(off[0])
+            take_off = float(self.time[i])
+            speed = float(c["com_speed_y"][i])
+            flight = max(speed, 0.0) ** 2 / (2.0 * m.gravity) if m.gravity > 0 else math.inf
+            back = np.flatnonzero(loaded[i:])
+            landing = float(self.time[i + back[0]]) if back.size else None
+        return GroundEvents(take_off, landing, rise, float(self.time[int(np.argmax(c["com_y"]))]),
+                            flight, float(c["grf_y"][peak]), float(self.time[peak]), weight)
 
     def kinematics(self) -> dict[str, np.ndarray]:
         """Positions and velocities over the run (`ChainModel.kinematics`): joints, centres,
