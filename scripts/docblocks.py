@@ -16,7 +16,8 @@ BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)"
                    r"(<!-- end generated -->)", re.S)
 #: Every generated block, by page (checked by ``scripts/make_docs.py --check`` in CI).
 PAGES = {
-    "docs/study.md": {"study-verdict", "study-limits", "default-checks"},
+    "docs/study.md": {"study-verdict", "study-limits", "default-checks", "jump-verdict",
+                      "jump-limits", "jump-stiffness"},
     "docs/validation.md": {"validation-figures"},
     "docs/fitting.md": {"fit-benchmark"},
     "docs/batch.md": {"batch-benchmark"},

@@ -348,3 +348,16 @@ def test_jump_events_and_the_grf_file(jump, tmp_path, capsys):
                                table["ground_force_vy"], rtol=1e-12)
     assert main(["simulate", "--grf", str(tmp_path / "x.mot")]) == 2  # the elbow: no contacts
     assert "--grf" in capsys.readouterr().err and not (tmp_path / "x.mot").exists()
+
+
+def test_the_stability_guard_watches_the_contacts_in_every_technique():
+    """IMEX makes the muscles implicit, not the contacts: at 2 ms the toe contact's
+    step/τ passes the RK4 limit, and the advice is a smaller step or Radau, not IMEX."""
+    model = ts.load_model("builtin:squat-jump")
+    run = ts.simulate(model, "imex", 2e-3, tolerance=None, check=False)
+    assert run.stability.exceeded and run.stability.in_contact
+    assert run.stability.unit == "ground contact at toe"
+    assert "'reference'" in run.message and "'imex'" not in run.message
+    fine = ts.simulate(model, "imex", 2.5e-4, tolerance=None)
+    assert not fine.stability.exceeded
+    assert fine.stability.max_step_ratio < 2.785 / 2

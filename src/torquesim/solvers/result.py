@@ -165,20 +165,27 @@ class StabilityReport:
         safe = self.limit * self.step / self.max_step_ratio
         return min(safe, 0.5 * self.step) if self.exceeded else safe
 
+    @property
+    def in_contact(self) -> bool:
+        """Whether the binding time constant is a ground contact's (explicit in every
+        fixed-step technique, IMEX included: only a smaller step or Radau helps)."""
+        return self.unit.startswith("ground contact")
+
     def message(self) -> str:
-        where = self.unit if self.unit.startswith("ground contact") else \
-            f"the {self.unit} unit"
+        where = self.unit if self.in_contact else f"the {self.unit} unit"
+        others = ("method 'reference' (the ground contacts are explicit in every fixed-step "
+                  "technique)" if self.in_contact else
+                  "method 'imex' (implicit muscles) or 'reference'")
         head = (f"step {self.step * 1e3:g} ms exceeds the RK4 stability limit in "
                 f"{where} at t = {self.time:.4f} s (step/τ = {self.max_step_ratio:.3g} "
                 f"> {RK4_STABILITY_LIMIT:.3f}); the motion is probably wrong although bounded. ")
         safe = self.largest_safe_step
         if self.verified_step == 0.0:
             return head + ("No smaller step tried (down to 1/256 of it, runs of at most 1e6 "
-                           "steps) passed: use method 'imex' or 'reference'.")
+                           f"steps) passed: use {others}.")
         how = ("a run at that step was checked" if self.verified_step is not None
                else "estimated on this run's motion")
-        return (head + f"Use a step ≤ {safe * 1e3:.4g} ms ({how}) or method 'imex' "
-                "(implicit muscles) or 'reference'.")
+        return head + f"Use a step ≤ {safe * 1e3:.4g} ms ({how}) or {others}."
 
 
 @dataclass(frozen=True)

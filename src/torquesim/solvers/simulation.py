@@ -183,7 +183,8 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
         status = "failed"
         message = (f"{label} with step {step * 1e3:g} ms: the state {what} at t = "
                    f"{times[-1]:.6g} s: the step is too large for this motion; "
-                   f"{_advice_text(stability.largest_safe_step, implicit=implicit)}")
+                   + _advice_text(stability.largest_safe_step,
+                                  implicit=implicit or stability.in_contact))
     elif stability.exceeded:
         message = stability.message()
     else:
@@ -192,6 +193,13 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
                    newton_iterations=int(stats[fs.NEWTON_ITERATIONS]),
                    implicit_solves=int(stats[fs.IMPLICIT_SOLVES]))
     settings = {"step": step, "steps": n}
+    if model.contacts:  # which part is stiff: the smallest time constant of each, s
+        muscle_step = stability.step if not stability.in_contact else \
+            step / (coupling.muscle_substeps if method == "partitioned" else 1)
+        settings["unit_time_constant_min_s"] = muscle_step / float(stats[fs.WORST_RATIO]) \
+            if stats[fs.WORST_RATIO] > 0 else math.inf
+        settings["contact_time_constant_min_s"] = step / contact_ratio \
+            if contact_ratio > 0 else math.inf
     if method == "partitioned":
         settings["coupling"] = coupling.__dict__.copy()
         # The exchange's jumps at the step ends (a diagnostic, not the accuracy check: see
@@ -226,7 +234,8 @@ def _out_of_range(model: ChainModel, y) -> str:
 
 def _advice_text(safe_step: float, verified: bool = False, implicit: bool = False) -> str:
     """What to change after a failed run; ``implicit``: the run's muscles were already
-    implicit (IMEX), so the advice is a smaller step or the reference solver."""
+    implicit (IMEX), or a ground contact (explicit in every technique) limits the step, so the
+    advice is a smaller step or the reference solver."""
     others = "method 'reference'" if implicit else \
         "method 'imex' (implicit muscles) or 'reference'"
     if not math.isfinite(safe_step) or safe_step <= 0.0:
@@ -283,7 +292,7 @@ def _with_advice(result: SimulationResult, safe: float | None) -> SimulationResu
     else:
         head = result.message.split("; use a step")[0].split("; use method")[0]
         advice = _advice_text(stability.largest_safe_step, safe is not None,
-                              math.isinf(stability.limit))
+                              math.isinf(stability.limit) or stability.in_contact)
         message = f"{head}; {advice}"
     return replace(result, stability=stability, message=message)
 
