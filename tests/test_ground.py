@@ -361,3 +361,11 @@ def test_the_stability_guard_watches_the_contacts_in_every_technique():
     fine = ts.simulate(model, "imex", 2.5e-4, tolerance=None)
     assert not fine.stability.exceeded
     assert fine.stability.max_step_ratio < 2.785 / 2
+
+
+def test_fitting_a_body_on_the_ground_is_refused_in_one_line(capsys):
+    from torquesim.cli import main
+
+    assert main(["fit", "--model", "builtin:squat-jump", "--target", "builtin:curl"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not built yet" in err

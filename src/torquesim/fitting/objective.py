@@ -80,7 +80,7 @@ def simulate_candidate(x, loop, coupling, y0, step, n_steps, seg, joints, units,
     """
     seg, joints, units, y0, coupling = seg.copy(), joints.copy(), units.copy(), y0.copy(), \
         coupling.copy()
-    n = seg.shape[0]
+    n = joints.shape[0]  # coordinates (the joint array has a row per coordinate)
     for u in range(levels.shape[0]):
         pack_profile(x, u * PER_UNIT, levels[u], profiles[u])
     states = np.empty((n_steps + 1, y0.shape[0]))

@@ -16,7 +16,7 @@ from ..solvers.coupling import IMEX, Coupling
 from ..solvers.techniques import FIT_METHODS
 from . import objective as obj
 from .parameters import ParameterSpace, with_ramps
-from .target import Target
+from .target import Target, require_fixed_base
 
 DEFAULT_METHOD = "imex"
 #: Default fit step, s: IMEX is stable at any step; 5 ms keeps it within ~0.3° of the
@@ -81,6 +81,7 @@ class FitProblem:
                         else preset("builtin:elbow-curl"))
         if not isinstance(base, ChainModel):
             raise TypeError("base_model: expected a model")
+        require_fixed_base(base)
         if self.space is None:
             self.space = ParameterSpace.for_model(base)
         if self.space.units != tuple(u.name for u in base.units):

@@ -128,6 +128,14 @@ def _auto_column(joint, names: list[str], one_joint: bool) -> str | None:
     return None
 
 
+def require_fixed_base(chain) -> None:
+    """A one-line `ModelError` for a body on the ground: fitting one is not built yet."""
+    if chain.base == "free":
+        raise ModelError("model", f"{chain.name} stands on the ground (base = \"free\"): "
+                         "fitting such a body is not built yet; allowed: a model on a fixed "
+                         "base")
+
+
 def load_target(spec: str, model=None, columns=None, units: str | None = None) -> Target:
     """A target for ``model`` (a chain; default the elbow curl).
 
@@ -142,6 +150,7 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
     from ..model.presets import preset
 
     chain = as_chain(model) if model is not None else preset("builtin:elbow-curl")
+    require_fixed_base(chain)
     joint_names = [j.name for j in chain.joints]
     if spec.startswith("builtin:"):
         name = spec.split(":", 1)[1]
