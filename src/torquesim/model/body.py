@@ -176,6 +176,63 @@ def contacts_start(n):
     return n * n + 4 * n
 
 
+@njit(cache=True, error_model="numpy")
+def _free_base_terms(y, n, n_seg, seg, work):
+    """The free base's rows of M and Q (x, y) and the ground contacts' forces in Q, into the
+    scratch of `joint_accelerations` (its trigonometry and speeds filled): apart, so that
+    the fixed-base solve carries none of this code."""
+    rhs = n * n
+    sine = rhs + n
+    cosine = sine + n
+    speed = cosine + n
+    work[0] = seg[0, SEG_MASS_COLUMN]
+    work[n] = 0.0
+    work[n + 1] = seg[0, SEG_MASS_COLUMN]
+    work[rhs] = 0.0
+    work[rhs + 1] = -seg[0, SEG_WEIGHT_COLUMN]
+    for a in range(n_seg):
+        i = 2 + a
+        moment = seg[a, SEG_MOMENT_COLUMN]
+        work[i * n] = moment * work[cosine + i]
+        work[i * n + 1] = moment * work[sine + i]
+        squared = work[speed + i] * work[speed + i]
+        work[rhs] += moment * squared * work[sine + i]
+        work[rhs + 1] -= moment * squared * work[cosine + i]
+    for c in range(n_seg, seg.shape[0]):  # ground contacts
+        k = int(seg[c, CONTACT_SEGMENT])
+        i = 2 + k
+        d = seg[c, CONTACT_DISTANCE]
+        e = seg[c, CONTACT_OFFSET]
+        # the point: base + Σ_ancestors Λ_sk·u(φ_s) + d·u(φ_k) + e·n(φ_k)
+        px = y[0] + d * work[sine + i] + e * work[cosine + i]
+        py = y[1] - d * work[cosine + i] + e * work[sine + i]
+        vx = y[n] + work[speed + i] * (d * work[cosine + i] - e * work[sine + i])
+        vy = y[n + 1] + work[speed + i] * (d * work[sine + i] + e * work[cosine + i])
+        s = int(seg[k, SEG_PARENT_COLUMN])
+        while s >= 0:
+            lever = seg[s, SEG_LEVER_COLUMN + k]
+            px += lever * work[sine + 2 + s]
+            py -= lever * work[cosine + 2 + s]
+            vx += lever * work[speed + 2 + s] * work[cosine + 2 + s]
+            vy += lever * work[speed + 2 + s] * work[sine + 2 + s]
+            s = int(seg[s, SEG_PARENT_COLUMN])
+        fx, fy = contact_force(py, vy, vx, seg, c)
+        o = speed + n + 4 * (c - n_seg)  # `contacts_start`
+        work[o], work[o + 1], work[o + 2], work[o + 3] = fx, fy, px, py
+        if fx == 0.0 and fy == 0.0:
+            continue
+        work[rhs] += fx
+        work[rhs + 1] += fy
+        work[rhs + i] += (d * work[cosine + i] - e * work[sine + i]) * fx \
+            + (d * work[sine + i] + e * work[cosine + i]) * fy
+        s = int(seg[k, SEG_PARENT_COLUMN])
+        while s >= 0:
+            lever = seg[s, SEG_LEVER_COLUMN + k]
+            work[rhs + 2 + s] += lever * (work[cosine + 2 + s] * fx
+                                          + work[sine + 2 + s] * fy)
+            s = int(seg[s, SEG_PARENT_COLUMN])
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     """Accelerations of the n coordinates of a planar tree of segments (docs/model.md §1, §7,
@@ -211,31 +268,38 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     `contacts_start` on each contact's force and point (no output array: the solvers' step
     loops pay for every array argument).
     """
-    n_seg = int(seg[0, SEG_COUNT_COLUMN])
-    nb = n - n_seg  # 2 on a free base, else 0
+    if int(seg[0, SEG_COUNT_COLUMN]) == n:
+        tree_accelerations(y, n, 0, muscle_torque, seg, joints, work)
+    else:
+        tree_accelerations(y, n, 2, muscle_torque, seg, joints, work)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def tree_accelerations(y, n, nb, muscle_torque, seg, joints, work):
+    """`joint_accelerations` with ``nb`` base coordinates (0: fixed, 2: free) given as a
+    constant at the call site, so that the inlined copy holds only its base's code. The step
+    loops call it with the constant their ``free_base`` switch gives (measured: a runtime
+    ``nb``, or both copies in one loop, made the fixed chains' solve 1.3–1.4x slower; one
+    copy, 1.07x the serial-chain code it replaced)."""
+    n_seg = n - nb
     rhs = n * n
     sine = rhs + n
     cosine = sine + n
     speed = cosine + n
-    for i in range(n * n):
-        work[i] = 0.0
     for k in range(n_seg):
         i = nb + k
         o = i * JOINT_ROW_SIZE
         p = int(seg[k, SEG_PARENT_COLUMN])
         phi = joints[o + ZERO_OFFSET] + y[i]
         phid = y[n + i]
-        if p >= 0:
-            phi += work[sine + nb + p]  # holds φ_p until every segment's φ is known
+        if p >= 0:  # parents come first: their φ is in work[nb + p] (M's first row, unused
+            phi += work[nb + p]  # until M is filled below)
             phid += work[speed + nb + p]
-        work[sine + i] = phi
-        work[speed + i] = phid
-        work[rhs + i] = muscle_torque[i] + passive_torque(y[i], joints, o)
-    for k in range(n_seg):
-        i = nb + k
-        phi = work[sine + i]
+        work[i] = phi
         work[sine + i] = math.sin(phi)
         work[cosine + i] = math.cos(phi)
+        work[speed + i] = phid
+        work[rhs + i] = muscle_torque[i] + passive_torque(y[i], joints, o)
     for k in range(n_seg):  # each joint torque's reaction on the parent (its children later)
         p = int(seg[k, SEG_PARENT_COLUMN])
         if p >= 0:
@@ -244,66 +308,20 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
         i = nb + a
         work[rhs + i] -= seg[a, SEG_GRAVITY_COLUMN] * work[sine + i]
         work[i * n + i] = seg[a, SEG_INERTIA_COLUMN]
-    for a in range(n_seg):  # each related pair a < b once: M_ba, and c_a, c_b
+    for a in range(n_seg):  # each pair a < b once: M_ba, and c_a, c_b
         i = nb + a
         for b in range(a + 1, n_seg):
-            lever = seg[a, SEG_LEVER_COLUMN + b]
-            if lever == 0.0:
-                continue
             j = nb + b
-            d_ab = lever * seg[b, SEG_MOMENT_COLUMN]
+            # Λ_ab = 0 for unrelated segments (a tree's branches): their terms vanish
+            d_ab = seg[a, SEG_LEVER_COLUMN + b] * seg[b, SEG_MOMENT_COLUMN]
             # sin and cos of φ_a − φ_b from those of φ_a and φ_b: 2n trig calls, not n²
             sin_ab = work[sine + i] * work[cosine + j] - work[cosine + i] * work[sine + j]
             work[j * n + i] = d_ab * (work[cosine + i] * work[cosine + j]
                                       + work[sine + i] * work[sine + j])
             work[rhs + i] -= d_ab * sin_ab * work[speed + j] * work[speed + j]
             work[rhs + j] += d_ab * sin_ab * work[speed + i] * work[speed + i]
-    if nb == 2:  # the free base's rows
-        work[0] = seg[0, SEG_MASS_COLUMN]
-        work[n + 1] = seg[0, SEG_MASS_COLUMN]
-        work[rhs] = 0.0
-        work[rhs + 1] = -seg[0, SEG_WEIGHT_COLUMN]
-        for a in range(n_seg):
-            i = 2 + a
-            moment = seg[a, SEG_MOMENT_COLUMN]
-            work[i * n] = moment * work[cosine + i]
-            work[i * n + 1] = moment * work[sine + i]
-            squared = work[speed + i] * work[speed + i]
-            work[rhs] += moment * squared * work[sine + i]
-            work[rhs + 1] -= moment * squared * work[cosine + i]
-        for c in range(n_seg, seg.shape[0]):  # ground contacts
-            k = int(seg[c, CONTACT_SEGMENT])
-            i = 2 + k
-            d = seg[c, CONTACT_DISTANCE]
-            e = seg[c, CONTACT_OFFSET]
-            # the point: base + Σ_ancestors Λ_sk·u(φ_s) + d·u(φ_k) + e·n(φ_k)
-            px = y[0] + d * work[sine + i] + e * work[cosine + i]
-            py = y[1] - d * work[cosine + i] + e * work[sine + i]
-            vx = y[n] + work[speed + i] * (d * work[cosine + i] - e * work[sine + i])
-            vy = y[n + 1] + work[speed + i] * (d * work[sine + i] + e * work[cosine + i])
-            s = int(seg[k, SEG_PARENT_COLUMN])
-            while s >= 0:
-                lever = seg[s, SEG_LEVER_COLUMN + k]
-                px += lever * work[sine + 2 + s]
-                py -= lever * work[cosine + 2 + s]
-                vx += lever * work[speed + 2 + s] * work[cosine + 2 + s]
-                vy += lever * work[speed + 2 + s] * work[sine + 2 + s]
-                s = int(seg[s, SEG_PARENT_COLUMN])
-            fx, fy = contact_force(py, vy, vx, seg, c)
-            o = speed + n + 4 * (c - n_seg)  # `contacts_start`
-            work[o], work[o + 1], work[o + 2], work[o + 3] = fx, fy, px, py
-            if fx == 0.0 and fy == 0.0:
-                continue
-            work[rhs] += fx
-            work[rhs + 1] += fy
-            work[rhs + i] += (d * work[cosine + i] - e * work[sine + i]) * fx \
-                + (d * work[sine + i] + e * work[cosine + i]) * fy
-            s = int(seg[k, SEG_PARENT_COLUMN])
-            while s >= 0:
-                lever = seg[s, SEG_LEVER_COLUMN + k]
-                work[rhs + 2 + s] += lever * (work[cosine + 2 + s] * fx
-                                              + work[sine + 2 + s] * fy)
-                s = int(seg[s, SEG_PARENT_COLUMN])
+    if nb == 2:
+        _free_base_terms(y, n, n_seg, seg, work)
     # LDLᵀ in place: L below the diagonal, D on it.
     for j in range(n):
         d = work[j * n + j]

@@ -31,8 +31,8 @@ from ..model.body import (
     SPEED_LIMIT,
     body_work_size,
     contact_time_constant,
-    joint_accelerations,
     single_segment_acceleration,
+    tree_accelerations,
 )
 from ..model.state import has_activation_state, unit_state, unit_states_start
 from ..model.unit_row import (
@@ -163,9 +163,9 @@ def _predict(preceding, preceding_before, this_before):
 
 
 @njit(cache=True, error_model="numpy")
-def check_body_kind(joints, general_body):
+def check_body_kind(joints, seg, general_body, free_base):
     """Check that the number of coordinates (rows of the 2-D ``joints``) matches
-    ``general_body``.
+    ``general_body``, and the packed body ``seg`` ``free_base``.
 
     The loops take ``general_body=True`` for bodies of two or more coordinates (the general
     mass-matrix solve: chains, trees, a free base) and leave it out for one segment on a
@@ -177,20 +177,26 @@ def check_body_kind(joints, general_body):
     n = joints.shape[0]
     if n > 1 and not general_body:
         raise ValueError("a body of two or more coordinates needs general_body=True")
+    if (n != int(seg[0, SEG_COUNT_COLUMN])) != (free_base is not None):
+        raise ValueError("free_base must be True exactly for a body on a free base")
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _general_accelerations(y, n, torque, seg, joints, work, dy, row):
-    """q̈ of a chain of two or more segments into dy[row, n:2n] (the general mass-matrix
-    solve, `joint_accelerations`)."""
-    joint_accelerations(y, n, torque, seg, joints, work)
+def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base):
+    """q̈ of a body of two or more coordinates into dy[row, n:2n] (the general mass-matrix
+    solve, `tree_accelerations`); ``free_base`` True or None (a compile-time switch, so a
+    loop holds the solve of its own base only)."""
+    if free_base is None:
+        tree_accelerations(y, n, 0, torque, seg, joints, work)
+    else:
+        tree_accelerations(y, n, 2, torque, seg, joints, work)
     for k in range(n):
         dy[row, n + k] = work[n * n + k]
 
 
 @njit(cache=True, error_model="numpy")
 def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
-                   general_body=False, dynamics=None):
+                   general_body=False, dynamics=None, free_base=None):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
@@ -198,7 +204,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
     finder with a prediction from the previous step (see `_predict`). ``general_body``: see
     `check_body_kind`.
     """
-    check_body_kind(joints, general_body)
+    check_body_kind(joints, seg, general_body, free_base)
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     size = y0.shape[0]
     y = y0.copy()
@@ -252,7 +258,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
             for j in range(n):
                 k[s, j] = stage[n + j]
             if general_body:
-                _general_accelerations(stage, n, torque, seg, joints, work, k, s)
+                _general_accelerations(stage, n, torque, seg, joints, work, k, s, free_base)
                 if s == 0 and contacts:
                     _record_contacts(stats, t, h, stage, n, seg, work)
             else:
@@ -276,7 +282,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
 
 
 @njit(cache=True, error_model="numpy")
-def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats):
+def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free_base):
     """One RK4 step of the body part (q, q̇) = y[:2n] with joint torques
     τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
     result into y_new[:2n]. ``b`` is the partitioned loop's scratch array."""
@@ -295,7 +301,8 @@ def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats):
                 else b[_TORQUE0, j]
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body:
-            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
+            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
+                                   free_base)
             if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
                 _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
         else:
@@ -416,7 +423,7 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
 
 @njit(cache=True, error_model="numpy")
 def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                         y_new, general_body, dynamics, stats):
+                         y_new, general_body, dynamics, stats, free_base):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
     The body stage sees the torque of the muscle stage state and the muscle stage sees the
@@ -450,7 +457,8 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
         for j in range(n):
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body:
-            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s)
+            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
+                                   free_base)
             if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
                 _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
         else:
@@ -463,7 +471,7 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
 @njit(cache=True, error_model="numpy")
 def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
                     general_body, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                    dynamics):
+                    dynamics, free_base):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -477,7 +485,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     ``end_exchange``) are switches, True for the one the packed ``coupling`` names and None for
     the other (`step_loop_switches`), so Numba compiles only the code a run needs.
     """
-    check_body_kind(joints, general_body)
+    check_body_kind(joints, seg, general_body, free_base)
     if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (sdirk_muscles is not None) or \
             (int(coupling[ORDER]) == EVERY_STAGE) != (stage_exchange is not None):
         raise ValueError("the coupling array and the step loop's switches disagree")
@@ -520,7 +528,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
         stats[NFEV_MUSCLE] += 1
         if stage_exchange is not None:
             _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                                 y1, general_body, dynamics, stats)
+                                 y1, general_body, dynamics, stats, free_base)
             stats[NFEV_BODY] += 4
             stats[NFEV_MUSCLE] += 4
             stats[SWEEPS] += 1
@@ -547,9 +555,9 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                     joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
                     for j in range(n):
                         b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats)
+                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base)
                 else:
-                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats)
+                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base)
                     if order == BODY_FIRST:
                         for j in range(n):
                             b[_Q_SLOPE, j] = y1[j] - y[j]
@@ -610,19 +618,20 @@ def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b
 
 
 def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
-                       dynamics: bool = False) -> tuple:
+                       dynamics: bool = False, free_base: bool = False) -> tuple:
     """The switches of `run_step_loop` for the monolithic (else partitioned, under the packed
     ``coupling``) technique on a body of ``n_coordinates`` (`ChainModel.n_coordinates`) whose
     units have activation dynamics or not (``dynamics``: any unit has;
-    `ChainModel.has_activation_dynamics`).
+    `ChainModel.has_activation_dynamics`), on a free base or not (``free_base``).
 
-    Nine values, True or None, in four pairs of which one is True: (monolithic, one segment),
+    Ten values, True or None, in four pairs of which one is True: (monolithic, one segment),
     (monolithic, chain), (partitioned, one segment), (partitioned, chain); SDIRK2 or RK4
     muscles; exchange at every stage or at the step ends; then the activation-state switch
-    (`check_unit_kinds`). None is a type of its own to Numba,
-    so a branch ``if switch is not None`` on a None switch is removed when compiling, and a run
-    compiles only its own code (a fit one loop and one muscle solver, not all of them). The
-    muscle and exchange pairs matter only to the partitioned loop."""
+    (`check_unit_kinds`) and the free-base switch (`_general_accelerations`). None is a type
+    of its own to Numba, so a branch ``if switch is not None`` on a None switch is removed
+    when compiling, and a run compiles only its own code (a fit one loop and one muscle
+    solver, not all of them). The muscle and exchange pairs matter only to the partitioned
+    loop."""
     def on(flag):
         return True if flag else None
 
@@ -631,13 +640,13 @@ def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
     stage = not monolithic and int(coupling[ORDER]) == EVERY_STAGE
     return (on(monolithic and not chain), on(monolithic and chain),
             on(not monolithic and not chain), on(not monolithic and chain),
-            on(sdirk), on(not sdirk), on(stage), on(not stage), on(dynamics))
+            on(sdirk), on(not sdirk), on(stage), on(not stage), on(dynamics), on(free_base))
 
 
 @njit(cache=True, error_model="numpy")
 def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned_chain,
-                  sdirk_muscles, rk4_muscles, stage_exchange, end_exchange, dynamics, y0, h,
-                  n_steps, seg, joints, units, profiles, coupling, out, stats):
+                  sdirk_muscles, rk4_muscles, stage_exchange, end_exchange, dynamics,
+                  free_base, y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats):
     """Run the step loop that the switches (`step_loop_switches`) choose: `rk4_monolithic` or
     `rk4_partitioned`, for one segment or a chain, and in the partitioned loop its muscle
     solver and exchange. Only the chosen code is compiled. (A dispatcher passed as an argument
@@ -648,15 +657,15 @@ def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned
                        dynamics=dynamics)  # general_body left out: its branch not compiled
     if monolithic_chain is not None:
         rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats, True,
-                       dynamics)
+                       dynamics, free_base)
     if partitioned_one is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
                         False, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                        dynamics)
+                        dynamics, None)
     if partitioned_chain is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
                         True, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                        dynamics)
+                        dynamics, free_base)
 
 
 def new_stats() -> np.ndarray:
