@@ -259,8 +259,9 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                 k[s, j] = stage[n + j]
             if general_body:
                 _general_accelerations(stage, n, torque, seg, joints, work, k, s, free_base)
-                if s == 0 and contacts:
-                    _record_contacts(stats, t, h, stage, n, seg, work)
+                if free_base is not None:  # contacts exist only on a free base
+                    if s == 0 and contacts:
+                        _record_contacts(stats, t, h, stage, n, seg, work)
             else:
                 k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
         for u in range(nu):
@@ -303,8 +304,9 @@ def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free
         if general_body:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
                                    free_base)
-            if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
-                _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
+            if free_base is not None:  # contacts exist only on a free base
+                if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
+                    _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
         else:
             b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
                                                         joints)
@@ -459,8 +461,9 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
         if general_body:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
                                    free_base)
-            if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
-                _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
+            if free_base is not None:  # contacts exist only on a free base
+                if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
+                    _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
         else:
             b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
                                                         joints)
