@@ -143,9 +143,11 @@ SPEED_LIMIT = ZERO_OFFSET + 1
 JOINT_ROW_SIZE = SPEED_LIMIT + 1
 #: Columns of a packed segment row (torquesim.model.chain.ChainModel.segment_array): A_k, B_k,
 #: g·B_k, the parent's index (−1: the base); in row 0 only, the number of segments, the total
-#: mass and g times it; from SEG_LEVER_COLUMN on, row a holds Λ_ab for every segment b.
+#: mass, g times it and 1 for a serial chain (each segment's parent the one before it);
+#: from SEG_LEVER_COLUMN on, row a holds Λ_ab for every segment b.
 (SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SEG_GRAVITY_COLUMN, SEG_PARENT_COLUMN,
- SEG_COUNT_COLUMN, SEG_MASS_COLUMN, SEG_WEIGHT_COLUMN, SEG_LEVER_COLUMN) = range(8)
+ SEG_COUNT_COLUMN, SEG_MASS_COLUMN, SEG_WEIGHT_COLUMN, SEG_SERIAL_COLUMN,
+ SEG_LEVER_COLUMN) = range(9)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -268,19 +270,25 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     `contacts_start` on each contact's force and point (no output array: the solvers' step
     loops pay for every array argument).
     """
+    serial = seg[0, SEG_SERIAL_COLUMN] != 0.0
     if int(seg[0, SEG_COUNT_COLUMN]) == n:
-        tree_accelerations(y, n, 0, muscle_torque, seg, joints, work)
+        if serial:
+            tree_accelerations(y, n, 0, True, muscle_torque, seg, joints, work)
+        else:
+            tree_accelerations(y, n, 0, False, muscle_torque, seg, joints, work)
+    elif serial:
+        tree_accelerations(y, n, 2, True, muscle_torque, seg, joints, work)
     else:
-        tree_accelerations(y, n, 2, muscle_torque, seg, joints, work)
+        tree_accelerations(y, n, 2, False, muscle_torque, seg, joints, work)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def tree_accelerations(y, n, nb, muscle_torque, seg, joints, work):
-    """`joint_accelerations` with ``nb`` base coordinates (0: fixed, 2: free) given as a
-    constant at the call site, so that the inlined copy holds only its base's code. The step
-    loops call it with the constant their ``free_base`` switch gives (measured: a runtime
-    ``nb``, or both copies in one loop, made the fixed chains' solve 1.3–1.4x slower; one
-    copy, 1.07x the serial-chain code it replaced)."""
+def tree_accelerations(y, n, nb, serial, muscle_torque, seg, joints, work):
+    """`joint_accelerations` with ``nb`` base coordinates (0: fixed, 2: free) and ``serial``
+    (each segment's parent the one before it) given as constants at the call site, so that
+    the inlined copy holds only its own body's code. The step loops call it with the
+    constants their ``free_base`` and ``tree`` switches give (measured: a runtime ``nb`` or
+    parent lookups in a serial chain made its solve 1.3–1.4x slower)."""
     n_seg = n - nb
     rhs = n * n
     sine = rhs + n
@@ -289,7 +297,7 @@ def tree_accelerations(y, n, nb, muscle_torque, seg, joints, work):
     for k in range(n_seg):
         i = nb + k
         o = i * JOINT_ROW_SIZE
-        p = int(seg[k, SEG_PARENT_COLUMN])
+        p = k - 1 if serial else int(seg[k, SEG_PARENT_COLUMN])
         phi = joints[o + ZERO_OFFSET] + y[i]
         phid = y[n + i]
         if p >= 0:  # parents come first: their φ is in work[nb + p] (M's first row, unused
@@ -300,10 +308,17 @@ def tree_accelerations(y, n, nb, muscle_torque, seg, joints, work):
         work[cosine + i] = math.cos(phi)
         work[speed + i] = phid
         work[rhs + i] = muscle_torque[i] + passive_torque(y[i], joints, o)
-    for k in range(n_seg):  # each joint torque's reaction on the parent (its children later)
-        p = int(seg[k, SEG_PARENT_COLUMN])
-        if p >= 0:
-            work[rhs + nb + p] -= work[rhs + nb + k]
+    # Each joint torque's reaction on the parent (its children come later). A serial chain
+    # (each parent the segment before) indexes without the parent column: the lookups made
+    # its solve 1.3x slower.
+    if serial:
+        for k in range(n_seg - 1):
+            work[rhs + nb + k] -= work[rhs + nb + k + 1]
+    else:
+        for k in range(n_seg):
+            p = int(seg[k, SEG_PARENT_COLUMN])
+            if p >= 0:
+                work[rhs + nb + p] -= work[rhs + nb + k]
     for a in range(n_seg):  # gravity, and the diagonal of M
         i = nb + a
         work[rhs + i] -= seg[a, SEG_GRAVITY_COLUMN] * work[sine + i]
@@ -344,9 +359,8 @@ def tree_accelerations(y, n, nb, muscle_torque, seg, joints, work):
             v -= work[k * n + i] * work[rhs + k]
         work[rhs + i] = v
     for k in range(n_seg - 1, 0, -1):  # q̈_k = φ̈_k − φ̈_parent (parents come first)
-        p = int(seg[k, SEG_PARENT_COLUMN])
-        if p >= 0:
-            work[rhs + nb + k] -= work[rhs + nb + p]
+        p = k - 1 if serial else int(seg[k, SEG_PARENT_COLUMN])
+        work[rhs + nb + k] -= work[rhs + nb + p]
 
 
 @njit(cache=True, error_model="numpy")

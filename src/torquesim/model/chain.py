@@ -41,6 +41,7 @@ from .body import (
     SEG_MASS_COLUMN,
     SEG_MOMENT_COLUMN,
     SEG_PARENT_COLUMN,
+    SEG_SERIAL_COLUMN,
     SEG_WEIGHT_COLUMN,
     SPEED_LIMIT,
     ZERO_OFFSET,
@@ -524,6 +525,11 @@ class ChainModel:
         return tuple(-1 if k == 0 else names.index(seg.parent) if seg.parent else k - 1
                      for k, seg in enumerate(self.segments))
 
+    @property
+    def is_serial(self) -> bool:
+        """Whether each segment hangs from the one before it (a chain, not a tree)."""
+        return all(p == k - 1 for k, p in enumerate(self.parents))
+
     def parent_distances(self) -> np.ndarray:
         """Where each segment's proximal joint sits along its parent's axis, m (0 for the
         first)."""
@@ -657,6 +663,7 @@ class ChainModel:
                 out[s, SEG_LEVER_COLUMN + b] = attach[child]
                 child, s = s, parents[s]
         out[0, SEG_COUNT_COLUMN] = n
+        out[0, SEG_SERIAL_COLUMN] = float(self.is_serial)
         out[0, SEG_MASS_COLUMN] = distal[0]
         out[0, SEG_WEIGHT_COLUMN] = self.gravity * distal[0]
         points = {p.name: p for p in self.points}

@@ -28,6 +28,7 @@ from ..model.body import (
     ENDSTOP_LOW,
     JOINT_ROW_SIZE,
     SEG_COUNT_COLUMN,
+    SEG_SERIAL_COLUMN,
     SPEED_LIMIT,
     body_work_size,
     contact_time_constant,
@@ -163,9 +164,9 @@ def _predict(preceding, preceding_before, this_before):
 
 
 @njit(cache=True, error_model="numpy")
-def check_body_kind(joints, seg, general_body, free_base):
+def check_body_kind(joints, seg, general_body, free_base, tree):
     """Check that the number of coordinates (rows of the 2-D ``joints``) matches
-    ``general_body``, and the packed body ``seg`` ``free_base``.
+    ``general_body``, and the packed body ``seg`` ``free_base`` and ``tree``.
 
     The loops take ``general_body=True`` for bodies of two or more coordinates (the general
     mass-matrix solve: chains, trees, a free base) and leave it out for one segment on a
@@ -179,24 +180,32 @@ def check_body_kind(joints, seg, general_body, free_base):
         raise ValueError("a body of two or more coordinates needs general_body=True")
     if (n != int(seg[0, SEG_COUNT_COLUMN])) != (free_base is not None):
         raise ValueError("free_base must be True exactly for a body on a free base")
+    if (seg[0, SEG_SERIAL_COLUMN] == 0.0) != (tree is not None):
+        raise ValueError("tree must be True exactly for a body that is not a serial chain")
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base):
+def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, tree):
     """q̈ of a body of two or more coordinates into dy[row, n:2n] (the general mass-matrix
-    solve, `tree_accelerations`); ``free_base`` True or None (a compile-time switch, so a
-    loop holds the solve of its own base only)."""
+    solve, `tree_accelerations`); ``free_base`` and ``tree`` True or None (compile-time
+    switches, so a loop holds the solve of its own body only: free base or fixed, tree or
+    serial chain)."""
     if free_base is None:
-        tree_accelerations(y, n, 0, torque, seg, joints, work)
+        if tree is None:
+            tree_accelerations(y, n, 0, True, torque, seg, joints, work)
+        else:
+            tree_accelerations(y, n, 0, False, torque, seg, joints, work)
+    elif tree is None:
+        tree_accelerations(y, n, 2, True, torque, seg, joints, work)
     else:
-        tree_accelerations(y, n, 2, torque, seg, joints, work)
+        tree_accelerations(y, n, 2, False, torque, seg, joints, work)
     for k in range(n):
         dy[row, n + k] = work[n * n + k]
 
 
 @njit(cache=True, error_model="numpy")
 def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
-                   general_body=False, dynamics=None, free_base=None):
+                   general_body=False, dynamics=None, free_base=None, tree=None):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
@@ -204,7 +213,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
     finder with a prediction from the previous step (see `_predict`). ``general_body``: see
     `check_body_kind`.
     """
-    check_body_kind(joints, seg, general_body, free_base)
+    check_body_kind(joints, seg, general_body, free_base, tree)
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     size = y0.shape[0]
     y = y0.copy()
@@ -258,7 +267,8 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
             for j in range(n):
                 k[s, j] = stage[n + j]
             if general_body:
-                _general_accelerations(stage, n, torque, seg, joints, work, k, s, free_base)
+                _general_accelerations(stage, n, torque, seg, joints, work, k, s, free_base,
+                                       tree)
                 if free_base is not None:  # contacts exist only on a free base
                     if s == 0 and contacts:
                         _record_contacts(stats, t, h, stage, n, seg, work)
@@ -283,7 +293,8 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
 
 
 @njit(cache=True, error_model="numpy")
-def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free_base):
+def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free_base,
+              tree):
     """One RK4 step of the body part (q, q̇) = y[:2n] with joint torques
     τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
     result into y_new[:2n]. ``b`` is the partitioned loop's scratch array."""
@@ -303,7 +314,7 @@ def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
-                                   free_base)
+                                   free_base, tree)
             if free_base is not None:  # contacts exist only on a free base
                 if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
                     _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
@@ -425,7 +436,7 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
 
 @njit(cache=True, error_model="numpy")
 def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                         y_new, general_body, dynamics, stats, free_base):
+                         y_new, general_body, dynamics, stats, free_base, tree):
     """One step with each part's own RK4 stages, exchanging values at every stage.
 
     The body stage sees the torque of the muscle stage state and the muscle stage sees the
@@ -460,7 +471,7 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
-                                   free_base)
+                                   free_base, tree)
             if free_base is not None:  # contacts exist only on a free base
                 if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
                     _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
@@ -474,7 +485,7 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
 @njit(cache=True, error_model="numpy")
 def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
                     general_body, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                    dynamics, free_base):
+                    dynamics, free_base, tree):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -488,7 +499,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     ``end_exchange``) are switches, True for the one the packed ``coupling`` names and None for
     the other (`step_loop_switches`), so Numba compiles only the code a run needs.
     """
-    check_body_kind(joints, seg, general_body, free_base)
+    check_body_kind(joints, seg, general_body, free_base, tree)
     if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (sdirk_muscles is not None) or \
             (int(coupling[ORDER]) == EVERY_STAGE) != (stage_exchange is not None):
         raise ValueError("the coupling array and the step loop's switches disagree")
@@ -531,7 +542,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
         stats[NFEV_MUSCLE] += 1
         if stage_exchange is not None:
             _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                                 y1, general_body, dynamics, stats, free_base)
+                                 y1, general_body, dynamics, stats, free_base, tree)
             stats[NFEV_BODY] += 4
             stats[NFEV_MUSCLE] += 4
             stats[SWEEPS] += 1
@@ -558,9 +569,11 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
                     joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
                     for j in range(n):
                         b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base)
+                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base,
+                              tree)
                 else:
-                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base)
+                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base,
+                              tree)
                     if order == BODY_FIRST:
                         for j in range(n):
                             b[_Q_SLOPE, j] = y1[j] - y[j]
@@ -621,20 +634,21 @@ def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b
 
 
 def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
-                       dynamics: bool = False, free_base: bool = False) -> tuple:
+                       dynamics: bool = False, free_base: bool = False,
+                       tree: bool = False) -> tuple:
     """The switches of `run_step_loop` for the monolithic (else partitioned, under the packed
     ``coupling``) technique on a body of ``n_coordinates`` (`ChainModel.n_coordinates`) whose
     units have activation dynamics or not (``dynamics``: any unit has;
-    `ChainModel.has_activation_dynamics`), on a free base or not (``free_base``).
+    `ChainModel.has_activation_dynamics`), on a free base or not (``free_base``), a tree or a
+    serial chain (``tree``).
 
-    Ten values, True or None, in four pairs of which one is True: (monolithic, one segment),
+    Eleven values, True or None, in four pairs of which one is True: (monolithic, one segment),
     (monolithic, chain), (partitioned, one segment), (partitioned, chain); SDIRK2 or RK4
     muscles; exchange at every stage or at the step ends; then the activation-state switch
-    (`check_unit_kinds`) and the free-base switch (`_general_accelerations`). None is a type
-    of its own to Numba, so a branch ``if switch is not None`` on a None switch is removed
-    when compiling, and a run compiles only its own code (a fit one loop and one muscle
-    solver, not all of them). The muscle and exchange pairs matter only to the partitioned
-    loop."""
+    (`check_unit_kinds`), the free-base and the tree switches (`_general_accelerations`). None
+    is a type of its own to Numba, so a branch ``if switch is not None`` on a None switch is
+    removed when compiling, and a run compiles only its own code (a fit one loop and one muscle
+    solver, not all of them). The muscle and exchange pairs matter only to the partitioned loop."""
     def on(flag):
         return True if flag else None
 
@@ -643,13 +657,15 @@ def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
     stage = not monolithic and int(coupling[ORDER]) == EVERY_STAGE
     return (on(monolithic and not chain), on(monolithic and chain),
             on(not monolithic and not chain), on(not monolithic and chain),
-            on(sdirk), on(not sdirk), on(stage), on(not stage), on(dynamics), on(free_base))
+            on(sdirk), on(not sdirk), on(stage), on(not stage), on(dynamics), on(free_base),
+            on(tree))
 
 
 @njit(cache=True, error_model="numpy")
 def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned_chain,
                   sdirk_muscles, rk4_muscles, stage_exchange, end_exchange, dynamics,
-                  free_base, y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats):
+                  free_base, tree, y0, h, n_steps, seg, joints, units, profiles, coupling, out,
+                  stats):
     """Run the step loop that the switches (`step_loop_switches`) choose: `rk4_monolithic` or
     `rk4_partitioned`, for one segment or a chain, and in the partitioned loop its muscle
     solver and exchange. Only the chosen code is compiled. (A dispatcher passed as an argument
@@ -660,15 +676,15 @@ def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned
                        dynamics=dynamics)  # general_body left out: its branch not compiled
     if monolithic_chain is not None:
         rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats, True,
-                       dynamics, free_base)
+                       dynamics, free_base, tree)
     if partitioned_one is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
                         False, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                        dynamics, None)
+                        dynamics, None, None)
     if partitioned_chain is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
                         True, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                        dynamics, free_base)
+                        dynamics, free_base, tree)
 
 
 def new_stats() -> np.ndarray:
