@@ -3,6 +3,7 @@
 from .activation import ActivationDynamics, ActivationProfile, Ramp
 from .body import BodyParameters
 from .chain import ChainModel, ChainStart, Joint, PackedChain, PointLoad, Segment, Unit, as_chain
+from .contact import GroundContact, Point
 from .elbow import ElbowModel, InitialState, default_model
 from .torque_generator import TorqueGeneratorUnit
 
@@ -13,9 +14,11 @@ __all__ = [
     "ChainModel",
     "ChainStart",
     "ElbowModel",
+    "GroundContact",
     "InitialState",
     "Joint",
     "PackedChain",
+    "Point",
     "PointLoad",
     "Ramp",
     "Segment",
