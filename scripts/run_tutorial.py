@@ -6,8 +6,8 @@ each one says it writes.
 Every ``torquesim ...`` line of the page's ```bash blocks (continuation lines joined, comments
 dropped) is run in a new empty folder holding a copy of ``examples/``, in page order; the
 install lines (``git clone``, ``python -m venv``, ``pip install``) are what CI itself does and
-are skipped. A command must exit 0 and every ``--out``/``--plot`` path it names must exist
-afterwards. Exit code 0 when all pass. ``.ci/run`` runs it.
+are skipped. A command must exit 0 and every ``--out``/``--plot``/``--animate``/``--grf``
+path it names must exist afterwards. Exit code 0 when all pass. ``.ci/run`` runs it.
 """
 
 from __future__ import annotations
@@ -40,9 +40,10 @@ def commands(text: str) -> list[str]:
 
 
 def written(command: str) -> list[str]:
-    """The paths a command says it writes (--out, --plot, --animate)."""
+    """The paths a command says it writes (--out, --plot, --animate, --grf)."""
     args = shlex.split(command)
-    return [args[i + 1] for i, a in enumerate(args[:-1]) if a in ("--out", "--plot", "--animate")]
+    written = ("--out", "--plot", "--animate", "--grf")
+    return [args[i + 1] for i, a in enumerate(args[:-1]) if a in written]
 
 
 def main(argv=None) -> int:
