@@ -72,7 +72,7 @@ def sympy_tree(model):
     import sympy as sp
     import sympy.physics.mechanics as me
 
-    n = model.n_coordinates
+    n, nb = model.n_coordinates, model.n_base
     q = me.dynamicsymbols(f"q0:{n}")
     u = me.dynamicsymbols(f"u0:{n}")
     tau = sp.symbols(f"tau0:{n}")
@@ -80,19 +80,22 @@ def sympy_tree(model):
     ground = me.ReferenceFrame("N")
     origin = me.Point("O")
     origin.set_vel(ground, 0)
-    base = origin.locatenew("B", q[0] * ground.x + q[1] * ground.y)
-    base.set_vel(ground, u[0] * ground.x + u[1] * ground.y)
+    if nb:
+        base = origin.locatenew("B", q[0] * ground.x + q[1] * ground.y)
+        base.set_vel(ground, u[0] * ground.x + u[1] * ground.y)
+    else:
+        base = origin
     frames, proximal, bodies, loads = [], [], [], []
     for k, seg in enumerate(model.segments):
         parent = model.parents[k]
         reference = ground if parent < 0 else frames[parent]
-        angle = q[2 + k] + (model.base_angle if parent < 0 else 0)
+        angle = q[nb + k] + (model.base_angle if parent < 0 else 0)
         frame = reference.orientnew(f"A{k}", "Axis", [angle, ground.z])
         path, p = [k], parent
         while p >= 0:
             path.append(p)
             p = model.parents[p]
-        frame.set_ang_vel(ground, sum(u[2 + j] for j in path) * ground.z)
+        frame.set_ang_vel(ground, sum(u[nb + j] for j in path) * ground.z)
         if parent < 0:
             joint = base
         else:
@@ -110,9 +113,9 @@ def sympy_tree(model):
             bodies.append(me.RigidBody(name, point, frame, mass,
                                        (me.inertia(frame, 0, 0, own), point)))
             loads.append((point, -mass * model.gravity * ground.y))
-        loads.append((frame, tau[2 + k] * ground.z))
+        loads.append((frame, tau[nb + k] * ground.z))
         if parent >= 0:
-            loads.append((reference, -tau[2 + k] * ground.z))
+            loads.append((reference, -tau[nb + k] * ground.z))
     names = [s.name for s in model.segments]
     spots = []
     for c, contact in enumerate(model.contacts):
@@ -162,6 +165,39 @@ def test_free_tree_equations_agree_with_kane():
         np.testing.assert_allclose(work[n * n: n * n + n], expected, rtol=1e-9,
                                    atol=1e-9 * np.abs(expected).max())
     assert loaded >= 6  # the contacts really pushed in most states
+
+
+@pytest.mark.slow
+def test_fixed_tree_equations_agree_with_kane():
+    """Two arms on a trunk that hangs from a fixed pivot (a tree on a fixed base): the same
+    solve against the same independent Kane model, without the base coordinates."""
+    segments = (ts.Segment("trunk", 20.0, 0.25, 20.0 * 0.25**2 + 0.8, 0.5),
+                ts.Segment("arm1", 3.0, 0.15, 3.0 * 0.15**2 + 0.02, 0.3, parent="trunk",
+                           parent_distance=0.45),
+                ts.Segment("arm2", 2.5, 0.14, 2.5 * 0.14**2 + 0.02, 0.28, parent="trunk",
+                           parent_distance=0.4),
+                ts.Segment("hand", 0.5, 0.05, 0.5 * 0.05**2 + 0.001, 0.1, parent="arm1"))
+    joints = tuple(ts.Joint(name, initial_angle=0.0, endstop_torque=0.0)
+                   for name in ("pivot", "shoulder1", "shoulder2", "wrist"))
+    units = tuple(u for j in joints for u in _pair(j.name))
+    model = ts.ChainModel("fixed_tree", segments, joints, units, base_angle=0.2)
+    assert not model.is_serial
+    accelerations, _ = sympy_tree(model)
+    seg, packed_joints = model.segment_array(), model.joint_array().ravel()
+    n = model.n_coordinates
+    work = np.empty(body_work_size(n, seg))
+    rng = np.random.default_rng(5)
+    for _ in range(8):
+        q, u, torques = rng.normal(0, 1.0, n), rng.normal(0, 2.0, n), rng.normal(0, 30, n)
+        joint_accelerations(np.concatenate([q, u]), n, torques, seg, packed_joints, work)
+        expected = accelerations(q, u, torques, [])
+        np.testing.assert_allclose(work[n * n: n * n + n], expected, rtol=1e-9,
+                                   atol=1e-9 * np.abs(expected).max())
+    short = model.replace(duration=0.2)  # the loops run trees (at a step within the limit)
+    run = ts.simulate(short, "monolithic", 1e-5)
+    assert not run.stability.exceeded
+    reference = ts.simulate(short, "reference", rtol=1e-11, atol=1e-13)
+    assert np.max(np.abs(run.q[::100] - reference.q)) < 1e-6
 
 
 @pytest.fixture(scope="module")
@@ -369,3 +405,16 @@ def test_fitting_a_body_on_the_ground_is_refused_in_one_line(capsys):
     assert main(["fit", "--model", "builtin:squat-jump", "--target", "builtin:curl"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "not built yet" in err
+
+
+def test_bad_ground_model_file_is_one_line_exit_2(tmp_path, capsys):
+    from torquesim.cli import main
+
+    text = model_to_toml(ts.load_model("builtin:squat-jump"))
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("stiffness = 5000000.0", "stiffness = -3.0", 1))
+    out = tmp_path / "run.csv"
+    assert main(["simulate", "--model", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "contacts[0].stiffness" in err and "(0, 1e+09]" in err
+    assert not out.exists()
