@@ -273,13 +273,13 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     serial = seg[0, SEG_SERIAL_COLUMN] != 0.0
     if int(seg[0, SEG_COUNT_COLUMN]) == n:
         if serial:
-            tree_accelerations(y, n, 0, True, muscle_torque, seg, joints, work)
+            _fixed_chain(y, n, muscle_torque, seg, joints, work)
         else:
-            tree_accelerations(y, n, 0, False, muscle_torque, seg, joints, work)
+            _fixed_tree(y, n, muscle_torque, seg, joints, work)
     elif serial:
-        tree_accelerations(y, n, 2, True, muscle_torque, seg, joints, work)
+        _free_chain(y, n, muscle_torque, seg, joints, work)
     else:
-        tree_accelerations(y, n, 2, False, muscle_torque, seg, joints, work)
+        _free_tree(y, n, muscle_torque, seg, joints, work)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -361,6 +361,28 @@ def tree_accelerations(y, n, nb, serial, muscle_torque, seg, joints, work):
     for k in range(n_seg - 1, 0, -1):  # q̈_k = φ̈_k − φ̈_parent (parents come first)
         p = k - 1 if serial else int(seg[k, SEG_PARENT_COLUMN])
         work[rhs + nb + k] -= work[rhs + nb + p]
+
+
+# The four bodies, each compiled once (and cached) for the callers outside the step loops
+# (`joint_accelerations`), rather than inlined four times into each of them.
+@njit(cache=True, error_model="numpy")
+def _fixed_chain(y, n, muscle_torque, seg, joints, work):
+    tree_accelerations(y, n, 0, True, muscle_torque, seg, joints, work)
+
+
+@njit(cache=True, error_model="numpy")
+def _fixed_tree(y, n, muscle_torque, seg, joints, work):
+    tree_accelerations(y, n, 0, False, muscle_torque, seg, joints, work)
+
+
+@njit(cache=True, error_model="numpy")
+def _free_chain(y, n, muscle_torque, seg, joints, work):
+    tree_accelerations(y, n, 2, True, muscle_torque, seg, joints, work)
+
+
+@njit(cache=True, error_model="numpy")
+def _free_tree(y, n, muscle_torque, seg, joints, work):
+    tree_accelerations(y, n, 2, False, muscle_torque, seg, joints, work)
 
 
 @njit(cache=True, error_model="numpy")

@@ -20,7 +20,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from ..model.activation import implicit_activation
 from ..model.body import (
@@ -184,21 +185,30 @@ def check_body_kind(joints, seg, general_body, free_base, tree):
         raise ValueError("tree must be True exactly for a body that is not a serial chain")
 
 
+def _tree_solve(y, n, torque, seg, joints, work, free_base, tree):
+    """`tree_accelerations` for the body the switches name; see `_tree_solve_for_body`."""
+
+
+@overload(_tree_solve, inline="always")
+def _tree_solve_for_body(y, n, torque, seg, joints, work, free_base, tree):
+    """Choose the solve by the switches' types while compiling, so that a loop types and
+    compiles one copy of it (fixed or free base, serial chain or tree), not four behind
+    constant branches (the same run time, a quarter of the compile time)."""
+    nb = 0 if isinstance(free_base, types.NoneType) else 2
+    serial = isinstance(tree, types.NoneType)
+
+    def solve(y, n, torque, seg, joints, work, free_base, tree):
+        tree_accelerations(y, n, nb, serial, torque, seg, joints, work)
+    return solve
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, tree):
     """q̈ of a body of two or more coordinates into dy[row, n:2n] (the general mass-matrix
     solve, `tree_accelerations`); ``free_base`` and ``tree`` True or None (compile-time
     switches, so a loop holds the solve of its own body only: free base or fixed, tree or
     serial chain)."""
-    if free_base is None:
-        if tree is None:
-            tree_accelerations(y, n, 0, True, torque, seg, joints, work)
-        else:
-            tree_accelerations(y, n, 0, False, torque, seg, joints, work)
-    elif tree is None:
-        tree_accelerations(y, n, 2, True, torque, seg, joints, work)
-    else:
-        tree_accelerations(y, n, 2, False, torque, seg, joints, work)
+    _tree_solve(y, n, torque, seg, joints, work, free_base, tree)
     for k in range(n):
         dy[row, n + k] = work[n * n + k]
 
