@@ -168,13 +168,18 @@ def single_segment_acceleration(q, muscle_torque, seg, joints):
 def body_work_size(n, seg):
     """Length of the scratch array `joint_accelerations` needs for n coordinates and the
     contacts of the packed body ``seg``."""
-    return n * n + 4 * n + 4 * (seg.shape[0] - int(seg[0, SEG_COUNT_COLUMN]))
+    return n * n + 4 * n + CONTACT_SLOTS * (seg.shape[0] - int(seg[0, SEG_COUNT_COLUMN]))
+
+
+#: What `joint_accelerations` leaves per contact in its scratch array: F_x, F_y (N), the
+#: point's x, y (m) and vertical speed (m/s).
+CONTACT_SLOTS = 5
 
 
 @njit(cache=True, error_model="numpy")
 def contacts_start(n):
-    """Where `joint_accelerations` leaves each contact's (F_x, F_y, x, y) in its scratch
-    array, for n coordinates: N, N, m, m, contact after contact."""
+    """Where `joint_accelerations` leaves each contact's `CONTACT_SLOTS` values in its
+    scratch array, for n coordinates, contact after contact."""
     return n * n + 4 * n
 
 
@@ -219,8 +224,8 @@ def _free_base_terms(y, n, n_seg, seg, work):
             vy += lever * work[speed + 2 + s] * work[sine + 2 + s]
             s = int(seg[s, SEG_PARENT_COLUMN])
         fx, fy = contact_force(py, vy, vx, seg, c)
-        o = speed + n + 4 * (c - n_seg)  # `contacts_start`
-        work[o], work[o + 1], work[o + 2], work[o + 3] = fx, fy, px, py
+        o = speed + n + CONTACT_SLOTS * (c - n_seg)  # `contacts_start`
+        work[o], work[o + 1], work[o + 2], work[o + 3], work[o + 4] = fx, fy, px, py, vy
         if fx == 0.0 and fy == 0.0:
             continue
         work[rhs] += fx
@@ -400,13 +405,14 @@ def contact_time_constant(y, n, seg, work, c):
     rhs = n * n
     sine = rhs + n
     cosine = sine + n
-    o = cosine + 2 * n + 4 * c  # `contacts_start`
+    o = cosine + 2 * n + CONTACT_SLOTS * c  # `contacts_start`
     row = n_seg + c
     k = int(seg[row, CONTACT_SEGMENT])
     height = work[o + 3]
     if height >= 0.0:
         return np.inf
-    # the point's vertical velocity (for the damping law) and its direction J
+    vertical_speed = work[o + 4]
+    # the direction J of the point's vertical velocity
     for i in range(n):
         work[rhs + i] = 0.0
     work[rhs + 1] = 1.0
@@ -418,15 +424,6 @@ def contact_time_constant(y, n, seg, work, c):
     while s >= 0:
         work[rhs + 2 + s] = seg[s, SEG_LEVER_COLUMN + k] * work[sine + 2 + s]
         s = int(seg[s, SEG_PARENT_COLUMN])
-    vertical_speed = 0.0
-    for j in range(n):  # J·ẋ in absolute rates: φ̇ of a segment is the sum along its path
-        rate = y[n + j]
-        if j >= 2:
-            p = int(seg[j - 2, SEG_PARENT_COLUMN])
-            while p >= 0:
-                rate += y[n + 2 + p]
-                p = int(seg[p, SEG_PARENT_COLUMN])
-        vertical_speed += work[rhs + j] * rate
     spring, damper = contact_stiffness(height, vertical_speed, seg, row)
     if spring <= 0.0 and damper <= 0.0:
         return np.inf

@@ -445,12 +445,11 @@ class ChainModel:
             raise ModelError("joints.coordinate", "two joints share a coordinate name; "
                              "allowed: unique names")
         joint_names = [j.name for j in self.joints]
+        free_joint = self.joints[0].name if self.base == "free" else None
         for i, unit in enumerate(self.units):
             if unit.joint not in joint_names:
                 raise ModelError(f"units[{i}].joint", f"{unit.joint!r} is not a joint; "
                                  f"allowed: {', '.join(joint_names)}")
-        free_joint = self.joints[0].name if self.base == "free" else None
-        for i, unit in enumerate(self.units):
             if unit.joint == free_joint:
                 raise ModelError(f"units[{i}].joint", f"{unit.joint!r} is the free base's "
                                  "joint, which carries no units; allowed: "

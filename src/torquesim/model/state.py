@@ -62,16 +62,6 @@ class StateLayout:
         return self.n_base + self.n_joints
 
     @property
-    def base_position(self) -> slice:
-        """(x, y) of a free base, m (empty on a fixed base)."""
-        return slice(0, self.n_base)
-
-    @property
-    def base_velocity(self) -> slice:
-        """(ẋ, ẏ) of a free base, m/s."""
-        return slice(self.n_coordinates, self.n_coordinates + self.n_base)
-
-    @property
     def coordinates(self) -> slice:
         """The base's coordinates and the joint angles."""
         return slice(0, self.n_coordinates)

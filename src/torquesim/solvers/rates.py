@@ -80,10 +80,7 @@ def unit_rates(q_joint, y, i, excitation, guess, units, u, dynamics):
     `activation_time_constant` if that is shorter."""
     o = u * UNIT_ROW_SIZE
     theta_cc = y[i]
-    level = excitation
-    if dynamics is not None:
-        if has_activation_state(units, u):
-            level = y[i + 1]
+    level = excitation if dynamics is None else unit_level(excitation, y, i, units, u)
     w, tau = unit_ce_velocity_and_time_constant(unit_stretch(q_joint, theta_cc, units, u),
                                                 theta_cc, level, units, guess, o)
     level_rate = 0.0
@@ -107,7 +104,8 @@ def check_unit_kinds(units, n_units, dynamics):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def unit_level(excitation, y, i, units, u):
-    """The activation unit u's CE sees (as `unit_rates` reads it), for outputs."""
+    """The activation unit u's CE sees: its state y[i + 1] with activation dynamics, else
+    its profile value (`unit_rates` and the outputs read it here)."""
     return y[i + 1] if has_activation_state(units, u) else excitation
 
 

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from ..model.body import (
+    CONTACT_SLOTS,
     JOINT_ROW_SIZE,
     body_work_size,
     contacts_start,
@@ -54,7 +55,7 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
             joint_accelerations(y, n, torque, seg, joints, work)
             for c in range(n_contacts):
                 for k in range(4):
-                    contact_out[i, c, k] = work[start + 4 * c + k]
+                    contact_out[i, c, k] = work[start + CONTACT_SLOTS * c + k]
         for j in range(n):
             joint_out[i, j, 0] = torque[j]
             joint_out[i, j, 1] = passive_torque(y[j], joints, j * JOINT_ROW_SIZE)
