@@ -21,7 +21,9 @@ from numba import njit
 from ..errors import ModelError, check_range
 from .contact import (
     CONTACT_DISTANCE,
+    CONTACT_FRICTION,
     CONTACT_OFFSET,
+    CONTACT_SLIP_SPEED,
     CONTACT_SEGMENT,
     contact_force,
     contact_stiffness,
@@ -390,44 +392,10 @@ def _free_tree(y, n, muscle_torque, seg, joints, work):
     tree_accelerations(y, n, 2, False, muscle_torque, seg, joints, work)
 
 
-@njit(cache=True, error_model="numpy")
-def contact_time_constant(y, n, seg, work, c):
-    """Time constant τ = 1/|λ| (s) of ground contact ``c`` (index among the contacts), for the
-    stability guard: the point's vertical motion as a mass 1/w on the contact's spring
-    ∂F_y/∂δ and damper ∂F_y/∂δ̇ (`contact_stiffness`), with w = J·M⁻¹·Jᵀ its inverse
-    effective mass (J: the generalized direction of its vertical velocity) and λ the larger
-    root of λ² − w·d·λ + w·k = 0 in magnitude. +inf off the ground.
-
-    Call it right after `joint_accelerations` at the same state: it reads the factorization of
-    M, the trigonometry and the contact's point left in ``work`` and overwrites the
-    accelerations (the caller has copied them)."""
-    n_seg = int(seg[0, SEG_COUNT_COLUMN])
-    rhs = n * n
-    sine = rhs + n
-    cosine = sine + n
-    o = cosine + 2 * n + CONTACT_SLOTS * c  # `contacts_start`
-    row = n_seg + c
-    k = int(seg[row, CONTACT_SEGMENT])
-    height = work[o + 3]
-    if height >= 0.0:
-        return np.inf
-    vertical_speed = work[o + 4]
-    # the direction J of the point's vertical velocity
-    for i in range(n):
-        work[rhs + i] = 0.0
-    work[rhs + 1] = 1.0
-    d = seg[row, CONTACT_DISTANCE]
-    e = seg[row, CONTACT_OFFSET]
-    i = 2 + k
-    work[rhs + i] = d * work[sine + i] + e * work[cosine + i]
-    s = int(seg[k, SEG_PARENT_COLUMN])
-    while s >= 0:
-        work[rhs + 2 + s] = seg[s, SEG_LEVER_COLUMN + k] * work[sine + 2 + s]
-        s = int(seg[s, SEG_PARENT_COLUMN])
-    spring, damper = contact_stiffness(height, vertical_speed, seg, row)
-    if spring <= 0.0 and damper <= 0.0:
-        return np.inf
-    # w = J·M⁻¹·Jᵀ by the LDLᵀ factorization left in work[:n²]
+@njit(cache=True, error_model="numpy", inline="always")
+def _inverse_effective_mass(n, work, rhs):
+    """w = J·M⁻¹·Jᵀ for the direction J in work[rhs:rhs+n] (overwritten), by the LDLᵀ
+    factorization of M left in work[:n²] by `joint_accelerations`."""
     w = 0.0
     for i in range(n):  # L·z = J
         v = work[rhs + i]
@@ -436,7 +404,125 @@ def contact_time_constant(y, n, seg, work, c):
         work[rhs + i] = v
     for i in range(n):  # zᵀ·D⁻¹·z
         w += work[rhs + i] * work[rhs + i] / work[i * n + i]
-    a = w * damper
-    disc = a * a - 4.0 * w * spring
-    rate = 0.5 * (a + math.sqrt(disc)) if disc >= 0.0 else math.sqrt(w * spring)
-    return 1.0 / rate if rate > 0.0 else np.inf
+    return w
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _point_direction(n, seg, work, row, k, vertical):
+    """The generalized direction J of the vertical (else horizontal) velocity of contact
+    ``row``'s point on segment k into work[n²:n²+n] (the trigonometry read from ``work``)."""
+    rhs = n * n
+    sine = rhs + n
+    cosine = sine + n
+    for i in range(n):
+        work[rhs + i] = 0.0
+    d = seg[row, CONTACT_DISTANCE]
+    e = seg[row, CONTACT_OFFSET]
+    i = 2 + k
+    if vertical:
+        work[rhs + 1] = 1.0
+        work[rhs + i] = d * work[sine + i] + e * work[cosine + i]
+    else:
+        work[rhs] = 1.0
+        work[rhs + i] = d * work[cosine + i] - e * work[sine + i]
+    s = int(seg[k, SEG_PARENT_COLUMN])
+    while s >= 0:
+        lever = seg[s, SEG_LEVER_COLUMN + k]
+        work[rhs + 2 + s] = lever * (work[sine + 2 + s] if vertical else work[cosine + 2 + s])
+        s = int(seg[s, SEG_PARENT_COLUMN])
+
+
+@njit(cache=True, error_model="numpy")
+def contact_time_constant(y, n, seg, work):
+    """Time constant τ = 1/|λ| (s) of the ground contacts together, for the stability guard,
+    and the index (among the contacts) of the one that contributes most; (+inf, 0) off the
+    ground. τ is the smaller of a normal and a friction time constant.
+
+    Normal: each loaded point's vertical motion as a mass 1/w_c on the contact's spring
+    ∂F_y/∂δ and damper ∂F_y/∂δ̇ (`contact_stiffness`), w_c = J_c·M⁻¹·J_cᵀ its inverse
+    effective mass (J_c: the generalized direction of its vertical velocity); springs and
+    dampers summed over the contacts as w_c·k_c and w_c·d_c (toe and heel on one foot act on
+    nearly one motion, so their stiffnesses add), λ the larger root of
+    λ² − Σw·d·λ + Σw·k = 0 in magnitude. Friction: the regularised Coulomb force is a damper
+    on the point's horizontal velocity, ∂F_x/∂v_x = −μ·F_y·v_s²/(v_x² + v_s²)^{3/2}
+    = −μ·F_y·(1 − ρ²)^{3/2}/v_s with ρ = |F_x|/(μ·F_y), so λ = Σ_c w_x,c·μ·F_y,c·(1 − ρ_c²)^{3/2}
+    /v_s,c (the trace of W·D, an upper bound of its largest eigenvalue). On the squat jump
+    the friction's τ, ~8 µs standing on two contacts, is far below the normal force's.
+
+    Call it right after `joint_accelerations` at the same state: it reads the factorization of
+    M, the trigonometry and the contacts' forces and points left in ``work`` and overwrites
+    the accelerations (the caller has copied them)."""
+    n_seg = int(seg[0, SEG_COUNT_COLUMN])
+    rhs = n * n
+    damping = 0.0
+    stiffness = 0.0
+    friction = 0.0
+    largest = 0.0
+    index = 0
+    for c in range(seg.shape[0] - n_seg):
+        o = rhs + 4 * n + CONTACT_SLOTS * c  # `contacts_start`
+        row = n_seg + c
+        k = int(seg[row, CONTACT_SEGMENT])
+        height = work[o + 3]
+        if height >= 0.0:
+            continue
+        tangential, normal = work[o], work[o + 1]
+        spring, damper = contact_stiffness(height, work[o + 4], seg, row)
+        own = 0.0
+        if spring > 0.0 or damper > 0.0:
+            _point_direction(n, seg, work, row, k, True)
+            w = _inverse_effective_mass(n, work, rhs)
+            damping += w * damper
+            stiffness += w * spring
+            own = max(w * damper, math.sqrt(w * spring))
+        mu = seg[row, CONTACT_FRICTION]
+        if normal > 0.0 and mu > 0.0:
+            ratio = min(abs(tangential) / (mu * normal), 1.0)
+            _point_direction(n, seg, work, row, k, False)
+            rate = _inverse_effective_mass(n, work, rhs) * mu * normal \
+                * (1.0 - ratio * ratio) ** 1.5 / seg[row, CONTACT_SLIP_SPEED]
+            friction += rate
+            own = max(own, rate)
+        if own > largest:
+            largest = own
+            index = c
+    disc = damping * damping - 4.0 * stiffness
+    rate = 0.5 * (damping + math.sqrt(disc)) if disc >= 0.0 else math.sqrt(stiffness)
+    rate = max(rate, friction)
+    return (1.0 / rate if rate > 0.0 else np.inf), index
+
+
+#: What `ground_outputs` returns per state: total ground reaction force F_x, F_y (N) and
+#: the centre of mass x, y (m).
+GROUND_OUTPUTS = ("grf_x", "grf_y", "com_x", "com_y")
+
+
+@njit(cache=True, error_model="numpy")
+def ground_outputs(y, n, seg, joints, muscle_torque, work, out):
+    """The total ground reaction force and the centre of mass of a body on a free base at
+    state ``y`` into out[0:4] (`GROUND_OUTPUTS`), for the fit's compiled residual:
+
+        F = Σ_contacts F_c,    x_CoM = x_base + Σ_a B_a·u(φ_a) / m,   u(φ) = (sin φ, −cos φ)
+
+    (B_a: first moment of segment a and everything distal to it about a's proximal joint,
+    the same as in the free base's rows of M). Runs `joint_accelerations` at ``y`` for the
+    contact forces and the trigonometry; ``muscle_torque`` (n, zeros) and ``work`` are
+    scratch."""
+    joint_accelerations(y, n, muscle_torque, seg, joints, work)
+    n_seg = int(seg[0, SEG_COUNT_COLUMN])
+    nb = n - n_seg
+    sine = n * n + n
+    cosine = sine + n
+    o = contacts_start(n)
+    fx = 0.0
+    fy = 0.0
+    for c in range(seg.shape[0] - n_seg):
+        fx += work[o + CONTACT_SLOTS * c]
+        fy += work[o + CONTACT_SLOTS * c + 1]
+    mass = seg[0, SEG_MASS_COLUMN]
+    cx = y[0]
+    cy = y[1]
+    for a in range(n_seg):
+        cx += seg[a, SEG_MOMENT_COLUMN] * work[sine + nb + a] / mass
+        cy -= seg[a, SEG_MOMENT_COLUMN] * work[cosine + nb + a] / mass
+    out[0], out[1], out[2], out[3] = fx, fy, cx, cy

@@ -145,13 +145,12 @@ def _record_stiffness(stats, t, ratio, u):
 def _record_contacts(stats, t, h, y, n, seg, work):
     """Update the contacts' stability guard at state ``y`` (time t, step h), right after
     `joint_accelerations` there (see `contact_time_constant`)."""
-    n_seg = int(seg[0, SEG_COUNT_COLUMN])
-    for c in range(seg.shape[0] - n_seg):
-        ratio = h / contact_time_constant(y, n, seg, work, c)
-        if ratio > stats[CONTACT_RATIO]:
-            stats[CONTACT_RATIO] = ratio
-            stats[CONTACT_TIME] = t
-            stats[CONTACT_INDEX] = c
+    tau, c = contact_time_constant(y, n, seg, work)
+    ratio = h / tau
+    if ratio > stats[CONTACT_RATIO]:
+        stats[CONTACT_RATIO] = ratio
+        stats[CONTACT_TIME] = t
+        stats[CONTACT_INDEX] = c
 
 
 @njit(cache=True, error_model="numpy", inline="always")
