@@ -23,8 +23,8 @@ from .contact import (
     CONTACT_DISTANCE,
     CONTACT_FRICTION,
     CONTACT_OFFSET,
-    CONTACT_SLIP_SPEED,
     CONTACT_SEGMENT,
+    CONTACT_SLIP_SPEED,
     contact_force,
     contact_stiffness,
 )
