@@ -421,9 +421,12 @@ _SEARCH_OPTIONS = (
                  help="Technique inside the fit. Explicit RK4 (monolithic, partitioned) needs "
                       "a step ≤ ~0.25 ms on the default model; runs that break its stability "
                       "limit score as failed."),
-    click.option("--step", type=TIME, default="5ms", show_default=True,
+    click.option("--step", type=TIME, default=None,
                  help="Fixed step (s; ms/us suffixes); the largest step not above it that "
-                      "divides the target's span is used."),
+                      "divides the target's span is used. Default: 5 ms; on a body on the "
+                      "ground the largest of 5, 2.5, 1, 0.5, 0.25, 0.1 … ms within 0.7 of its "
+                      "contacts' stability limit on the model's own run (0.25 ms on "
+                      "builtin:squat-jump)."),
     click.option("--search", type=click.Choice(["least-squares", "global"]),
                  default="least-squares", show_default=True,
                  help="least-squares: trust-region least squares with a parallel "
@@ -450,13 +453,15 @@ def _search_options(fn):
 @click.option("--target", "target_spec", default=None,
               help="Measured motion: a .csv (a time column and angle columns) or OpenSim "
                    ".mot/.sto (inverse kinematics: one column per coordinate), or a built-in "
-                   "minimum-jerk motion builtin:curl|knee-extension|arm-raise. Default: the "
-                   "model preset's own (builtin:curl for the elbow).")
+                   "motion builtin:curl|knee-extension|arm-raise|squat-jump. On a body on the "
+                   "ground, columns grf_x, grf_y (N), com_x, com_y (m) are scored too. "
+                   "Default: the model preset's own (builtin:curl for the elbow).")
 @click.option("--column", "columns", multiple=True, metavar="JOINT=COLUMN",
               help="Target column of a joint (repeatable). Default: matched by name (the "
                    "joint's coordinate, e.g. elbow_flexion, its name, or the only column "
                    "containing its name). On a one-joint model a bare COLUMN works. Joints "
-                   "without a column are simulated, not scored.")
+                   "without a column are simulated, not scored. Also grf_y=COLUMN etc. for a "
+                   "ground reaction force or centre-of-mass column of another name.")
 @click.option("--angle-units", "--units", "units", type=click.Choice(["deg", "rad"]),
               help="Units of the target angles (CSV default deg; .mot/.sto: inDegrees).")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
@@ -492,6 +497,13 @@ def _search_options(fn):
               help="Weight (deg² per activation²) of the effort: Σ over units of the mean "
                    "squared activation above rest, so that among equal fits the least "
                    "co-contraction wins (e.g. 10).")
+@click.option("--weight-grf", type=click.FloatRange(0.0, 1e4), default=20.0, show_default=True,
+              help="Weight (deg per body weight) of the target's ground reaction force "
+                   "columns: with 20, an RMS error of 5 % of body weight counts as 1 deg.")
+@click.option("--weight-com", type=click.FloatRange(0.0, 1e5), default=100.0,
+              show_default=True,
+              help="Weight (deg per m) of the target's centre-of-mass columns: with 100, "
+                   "1 cm RMS counts as 1 deg.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="fit-out",
               show_default=True, help="Directory for the fitted model, tables, figure, "
                                       "summary and checkpoint.")
@@ -501,8 +513,8 @@ def _search_options(fn):
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
 def fit(target_spec, columns, units, model_path, method, step, search, starts, iterations,
         seed, generations, population, polish, max_time, rest_level, bounds, frozen,
-        joint_weights, weight_velocity, weight_end, weight_effort, out_dir, resume, overwrite,
-        quiet):
+        joint_weights, weight_velocity, weight_end, weight_effort, weight_grf, weight_com,
+        out_dir, resume, overwrite, quiet):
     """Fit every unit's activation ramps to a measured motion of one or more joints.
 
     Inverse-dynamics start, then least squares (or --search global); the result is
@@ -539,7 +551,8 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
         own = model_path.removeprefix("builtin:")
         if not model_path.startswith("builtin:") or own not in BUILTIN_TARGETS:
             raise ModelError("--target", "required for a model file; allowed: a .csv, .mot "
-                             "or .sto file, or builtin:curl|knee-extension|arm-raise")
+                             "or .sto file, or builtin:" + "|".join(
+                                 k for k in BUILTIN_TARGETS if k != "elbow-curl"))
         target_spec = "builtin:curl" if own == "elbow-curl" else model_path
     column_map = (columns[0] if len(columns) == 1 and "=" not in columns[0]
                   else _parse_pairs(columns, "--column", "elbow=r_elbow_flex"))
@@ -559,7 +572,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
                               generations=generations, population_per_parameter=population,
                               polish_simulations=polish, max_time=max_time)
     problem = FitProblem(target, space, base, method, step, weight_velocity, weight_end,
-                         weight_effort, weights)
+                         weight_effort, weights, weight_grf, weight_com)
     checkpoint = out / CHECKPOINT_FILE
     state = None
     if resume:

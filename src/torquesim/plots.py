@@ -7,14 +7,16 @@ import textwrap
 import numpy as np
 
 
-def plot_result(result, *, target=None):
+def plot_result(result, *, target=None, channels=None):
     """Per joint (one row each): the joint angle (deg), each unit's torque at the joint with
     its sign (d·T: flexors +, extensors −) and the net muscle torque (N·m, flexion +), and its
     units' activations. With a ``target``, a fourth panel per scored joint shows the residual
     (simulated − target, deg) with its RMS and maximum.
 
     ``target`` is an optional (time, angle rad) pair drawn over the first joint's angle, or a
-    dict joint name → (time, angle rad).
+    dict joint name → (time, angle rad). ``channels`` (a body on the ground): a dict
+    ``grf_x|grf_y|com_x|com_y`` → (time, target values in N or m), drawn in a last row with
+    the simulated ones and their residuals (% of body weight, cm).
     """
     cols = result.columns()
     model = result.model
@@ -23,7 +25,12 @@ def plot_result(result, *, target=None):
     targets = target if isinstance(target, dict) else (
         {model.joints[0].name: target} if target is not None else {})
     ncols = 4 if targets else 3
-    fig, axes = _figure_grid(n, ncols, (4.4 * ncols, 2.9 * n + 0.8))
+    channels = channels or {}
+    fig, axes = _figure_grid(n + bool(channels), ncols,
+                             (4.4 * ncols, 2.9 * (n + bool(channels)) + 0.8))
+    if channels:
+        _channel_row(axes[n], cols, channels,
+                     model.gravity * sum(s.total_mass for s in model.segments))
     for row, joint in enumerate(model.joints):
         ax_angle, ax_torque, ax_act = axes[row][:3]
         angle = np.degrees(cols[joint.coordinate])
@@ -56,7 +63,11 @@ def plot_result(result, *, target=None):
         ax_torque.legend(loc="best", fontsize="small")
         ax_act.set_ylim(0.0, 1.05)
         ax_act.set_ylabel("activation (0–1)")
-        ax_act.legend(loc="best", fontsize="small")
+        if units:
+            ax_act.legend(loc="best", fontsize="small")
+        else:  # a free base's joint: no units
+            ax_act.text(0.5, 0.5, f"no units at {joint.name}", ha="center", va="center",
+                        transform=ax_act.transAxes, color="grey")
         for ax in axes[row]:
             ax.grid(alpha=0.3)
     for ax in axes[-1]:
@@ -270,6 +281,41 @@ def _figure(figsize):
     import matplotlib.pyplot as plt
 
     return plt.figure(figsize=figsize, layout="constrained")
+
+
+def _channel_row(axes, cols, channels, weight):
+    """The fit figure's row of ground reaction forces and centre of mass: simulated (solid)
+    and target (dashed), then the residuals in % of body weight and cm."""
+    t = cols["time"]
+    kinds = (("grf", "ground reaction force (N)", 100.0 / weight, "% body weight"),
+             ("com", "centre of mass (m)", 100.0, "cm"))
+    for k, (prefix, label, scale, unit) in enumerate(kinds):
+        ax, ax_res = axes[k], axes[2 + k] if len(axes) > 3 else None
+        names = [c for c in channels if c.startswith(prefix)]
+        if not names:
+            ax.set_axis_off()
+            if ax_res is not None:
+                ax_res.set_axis_off()
+            continue
+        worst = []
+        for i, name in enumerate(names):
+            tt, goal = channels[name]
+            color = f"C{i}"
+            ax.plot(t, cols[name], color=color, label=f"{name} simulated")
+            ax.plot(tt, goal, ls=(0, (4, 3)), color=color, lw=1.6, label=f"{name} target")
+            residual = (np.interp(tt, t, cols[name]) - goal) * scale
+            worst.append(f"{name} RMS {float(np.sqrt(np.mean(residual**2))):.3g}")
+            if ax_res is not None:
+                ax_res.plot(tt, residual, color=color, label=name)
+        ax.set_ylabel(label)
+        ax.legend(loc="best", fontsize="small")
+        if ax_res is not None:
+            ax_res.axhline(0.0, color="grey", lw=0.8)
+            ax_res.set_ylabel(f"residual ({unit})")
+            ax_res.set_title(", ".join(worst), fontsize="medium")
+            ax_res.legend(loc="best", fontsize="small")
+    for ax in axes:
+        ax.grid(alpha=0.3)
 
 
 def _figure_grid(nrows: int, ncols: int, size):

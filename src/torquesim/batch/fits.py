@@ -180,14 +180,15 @@ def _check_settings(jobs: list[FitJob], settings: dict) -> None:
     if settings["method"] not in FIT_METHODS:
         raise ModelError("--method", f"{settings['method']!r}; allowed: "
                          f"{', '.join(FIT_METHODS)}")
-    check_range("--step", settings["step"], 1e-5, 1.0, unit="s")
+    if settings["step"] is not None:  # None: each model's default (`default_step`)
+        check_range("--step", settings["step"], 1e-5, 1.0, unit="s")
     check_range("--weight-effort", settings["weight_effort"], 0.0, 1e6)
     for spec in dict.fromkeys(job.model for job in jobs):
         load_model(spec)
 
 
 def fit_many(targets=(), *, out, model: str = "builtin:elbow-curl", manifest=None,
-             method: str = "imex", step: float = 5e-3, search: str = "least-squares",
+             method: str = "imex", step: float | None = None, search: str = "least-squares",
              seed: int = 1, starts: int = 4, iterations: int = 200,
              weight_effort: float = 0.0, units: str | None = None, client=None,
              workers: int | None = None, scheduler: str | None = None, progress=None):

@@ -2,8 +2,8 @@
 
 ``least-squares`` (default): SciPy's trust-region reflective least squares on the residual
 vector (`torquesim.fitting.objective`) from the inverse-dynamics start and from
-``starts − 1`` seeded perturbations of it; the Jacobian comes from central differences whose
-2·(free parameters) simulations run in parallel in compiled code. Its cost grows with the
+``starts − 1`` seeded perturbations of it; the Jacobian comes from forward differences whose
+(free parameters) simulations run in parallel in compiled code. Its cost grows with the
 number of parameters only through the Jacobian, so chains fit in seconds.
 
 ``global``: differential evolution over the bounds (population 10 × free parameters), then a
@@ -38,8 +38,8 @@ from .problem import FitProblem
 
 CHECKPOINT_VERSION = 2
 SEARCHES = ("least-squares", "global")
-#: Central-difference step of the Jacobian (s for delays and durations, activation for
-#: levels); one-sided where a bound is closer.
+#: Difference step of the Jacobian (s for delays and durations, activation for levels):
+#: forward, backward where the upper bound is closer.
 DIFFERENCE_STEP = 1e-5
 #: Residual evaluations each least-squares start gets before the best one is refined.
 SCREEN_EVALUATIONS = 6
@@ -119,11 +119,13 @@ class FitOutcome:
 
 def fingerprint(problem: FitProblem) -> str:
     """Hash of what a checkpoint is only valid for: target, model, space, technique."""
+    channels = (problem.target_channels, tuple(problem.target.channels), problem.weight_grf,
+                problem.weight_com) if problem.target.channels else ()
     return hash_parts(np.asarray(problem.target.time, dtype=float),
                       np.asarray(problem.target.angles, dtype=float),  # every scored joint
                       (problem.model, problem.space, problem.method, problem.step,
                        problem.weight_velocity, problem.weight_end, problem.weight_effort,
-                       problem.weights.tolist(), problem.target.joints))
+                       problem.weights.tolist(), problem.target.joints), *channels)
 
 
 def save_checkpoint(path, state: dict) -> None:
@@ -200,18 +202,20 @@ def _initial_population(problem, guess, size, rng) -> np.ndarray:
 
 
 def _explain_failed_start(problem: FitProblem, x) -> None:
-    """The start cannot be simulated with the fit's explicit technique: say why and stop
-    (a fit whose every run breaks the RK4 stability limit would fit numerical artefacts)."""
+    """The start cannot be simulated at the fit's step: if it breaks the RK4 stability limit
+    (explicit muscles, or a ground contact, which every technique integrates explicitly), say
+    so and stop (a fit whose every run breaks it would fit numerical artefacts)."""
     from ..solvers.simulation import simulate
 
     run = simulate(problem.model_for(x), problem.method, problem.step,
                    coupling=problem.coupling, check=False)
     if run.stability is not None and run.stability.exceeded:
+        other = "" if run.stability.in_contact else ", or --method imex"
         raise ModelError("step", f"{problem.step * 1e3:.4g} ms is beyond explicit RK4's "
                          f"stability limit on this motion (step/τ = "
                          f"{run.stability.max_step_ratio:.3g} > 2.785 in the "
                          f"{run.stability.unit}); allowed: --step ≤ "
-                         f"{run.stability.largest_safe_step * 1e3:.3g} ms, or --method imex")
+                         f"{run.stability.largest_safe_step * 1e3:.3g} ms{other}")
 
 
 #: A fit's own RMS error per scored joint (simulated with its technique and step) and that of
@@ -317,7 +321,7 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
         guess = initial_guess(problem) if start is None else np.asarray(start, dtype=float)
         scores, failed = problem.evaluate(guess)
         guess_score = float(scores[0])
-        if failed[0] and problem.explicit_muscles:
+        if failed[0]:
             _explain_failed_start(problem, guess)
         say(f"initial guess (inverse dynamics): {guess_score:.3f} deg")
         run.state = {"version": CHECKPOINT_VERSION, "fingerprint": fingerprint(problem),
@@ -440,22 +444,26 @@ class _Run:
             points.append(np.clip(guess + rng.normal(0.0, 0.1, guess.size) * (hi - lo), lo, hi))
         return np.array(points)
 
-    def jacobian(self, z) -> np.ndarray:
-        """∂r/∂z by central differences (one-sided at a bound), 2·len(z) simulations in
-        parallel; a column whose runs fail is 0."""
+    def jacobian(self, z, at=None) -> np.ndarray:
+        """∂r/∂z by forward differences (backward where the upper bound is closer than the
+        difference step), len(z) simulations in parallel; ``at`` is r(z) when already known
+        (the least-squares search asks for the Jacobian where it has just evaluated r), else
+        it is simulated too. A column whose run fails is 0."""
         lo = np.array(self.space.lower)[self.free]
         hi = np.array(self.space.upper)[self.free]
-        plus = np.minimum(z + DIFFERENCE_STEP, hi)
-        minus = np.maximum(z - DIFFERENCE_STEP, lo)
-        rows = np.empty((2 * z.size, self.space.size))
+        moved = np.where(z + DIFFERENCE_STEP <= hi, z + DIFFERENCE_STEP, z - DIFFERENCE_STEP)
+        moved = np.clip(moved, lo, hi)
+        rows = np.empty((z.size + (at is None), self.space.size))
         for i in range(z.size):
-            zp, zm = z.copy(), z.copy()
-            zp[i], zm[i] = plus[i], minus[i]
-            rows[2 * i] = self.space.full(zp, self.base)
-            rows[2 * i + 1] = self.space.full(zm, self.base)
+            zi = z.copy()
+            zi[i] = moved[i]
+            rows[i] = self.space.full(zi, self.base)
+        if at is None:
+            rows[-1] = self.space.full(z, self.base)
         residuals, failed = self.problem.residuals(rows)
-        jac = (residuals[0::2] - residuals[1::2]).T / (plus - minus)
-        jac[:, failed[0::2] | failed[1::2]] = 0.0
+        centre = residuals[-1] if at is None else at
+        jac = (residuals[:z.size] - centre).T / (moved - z)
+        jac[:, failed[:z.size]] = 0.0
         return jac
 
     def _solve(self, z0, budget: int):
@@ -464,6 +472,7 @@ class _Run:
         from scipy.optimize import least_squares
 
         problem = self.problem
+        last = {}
 
         def residual(z):
             if self.stopping():
@@ -471,12 +480,15 @@ class _Run:
             r, _ = problem.residuals(self.space.full(z, self.base))
             self.keep(z, float(np.sqrt(r[0] @ r[0])))
             self.save()
+            last["z"], last["r"] = np.array(z, dtype=float), r[0]
             return r[0]
 
         def jacobian(z):
             if self.stopping():
                 raise _Stop
-            return self.jacobian(np.asarray(z, dtype=float))
+            z = np.asarray(z, dtype=float)
+            known = last.get("r") if np.array_equal(z, last.get("z")) else None
+            return self.jacobian(z, known)
 
         lo, hi = np.array(self.space.bounds()).T
         try:

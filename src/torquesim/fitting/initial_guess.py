@@ -1,5 +1,12 @@
 """Inverse-dynamics initial guess for the fit, on any chain.
 
+On a body on the ground (free base) the inverse dynamics holds the root segment's proximal
+point where it stands while the body is on the ground (the foot planted: the ground supplies
+whatever force the motion needs), and lets the body fly free (no contact force; the root's
+angle then follows from the joint torques, so only the joints' equations are solved) where
+the target's vertical ground reaction force is below 1 % of body weight. Without a force
+target the body is taken to be on the ground throughout.
+
 1. Smooth each scored joint's target (a smoothing spline, GCV) and differentiate: q, q̇, q̈.
    Joints without a target stay at their initial angle.
 2. Net muscle torque per joint the motion needs: the body equation (docs/model.md §7) is
@@ -27,13 +34,44 @@ from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
 #: Spacing of the inverse-dynamics grid, s.
 GRID = 0.005
+#: A body on the ground is in flight where the target's vertical GRF is below this fraction
+#: of body weight.
+FLIGHT_FORCE = 0.01
+#: Height of the root in the flight equations, m: far above any contact.
+FLIGHT_HEIGHT = 1.0e3
+
+
+def _torque_columns(y, n, actuated, seg, joints, work):
+    """q̈₀ (the accelerations without muscle torque) and B's columns of the ``actuated``
+    coordinates, (n,) and (n, len(actuated)), at the state ``y``."""
+    acc = slice(n * n, n * n + n)
+    zero = np.zeros(n)
+    joint_accelerations(y, n, zero, seg, joints, work)
+    free = work[acc].copy()
+    columns = np.empty((n, len(actuated)))
+    for c, j in enumerate(actuated):
+        unit = np.zeros(n)
+        unit[j] = 1.0
+        joint_accelerations(y, n, unit, seg, joints, work)
+        columns[:, c] = work[acc] - free
+    return free, columns
+
+
+def flight_samples(model, target, t) -> np.ndarray:
+    """Which grid times ``t`` (s from the target start) the body is in flight: a free base
+    and the target's vertical ground reaction force below `FLIGHT_FORCE` of body weight."""
+    if model.base != "free" or "grf_y" not in target.channels:
+        return np.zeros(t.size, dtype=bool)
+    weight = model.gravity * sum(s.total_mass for s in model.segments)
+    return np.interp(t, target.elapsed, target.channels["grf_y"]) < FLIGHT_FORCE * weight
 
 
 def required_torques(model, target, spacing: float = GRID):
     """(t, q, q̇, τ) on a regular grid (s from the target start): joint angles and speeds
     (n × samples) and the net muscle torque at each joint, N·m, that makes the body follow
-    the smoothed target. ``model`` is the fit's chain (starting at the target)."""
-    n = model.n_joints
+    the smoothed target. ``model`` is the fit's chain (starting at the target); on a free
+    base, see the module docstring (the root's torque is then 0)."""
+    n, nb = model.n_joints, model.n_base
     t = np.linspace(0.0, target.duration, int(round(target.duration / spacing)) + 1)
     q = np.array([np.full(t.size, j.initial_angle) for j in model.joints])
     qd, qdd = np.zeros_like(q), np.zeros_like(q)
@@ -42,21 +80,24 @@ def required_torques(model, target, spacing: float = GRID):
         spline = target.smoothed(row)
         k = names.index(joint)
         q[k], qd[k], qdd[k] = spline(t), spline.derivative(1)(t), spline.derivative(2)(t)
-    seg, joints = model.segment_array(), model.joint_array().ravel()
-    work = np.zeros(body_work_size(n, seg))
-    acc = slice(n * n, n * n + n)
-    torque = np.empty_like(q)
+    seg, rows = model.segment_array(), model.joint_array()
+    # on the ground: a free base's rows dropped, the fixed-base solve holds the root's
+    # proximal point; in flight: every coordinate, the root high above the ground
+    planted = rows[nb:].ravel()
+    flying = rows.ravel()
+    work = np.zeros(body_work_size(n + nb, seg))
+    flight = flight_samples(model, target, t)
+    torque = np.zeros_like(q)
     for i in range(t.size):
-        y = np.concatenate([q[:, i], qd[:, i]])
-        joint_accelerations(y, n, np.zeros(n), seg, joints, work)
-        free = work[acc].copy()
-        columns = np.empty((n, n))
-        for j in range(n):
-            unit = np.zeros(n)
-            unit[j] = 1.0
-            joint_accelerations(y, n, unit, seg, joints, work)
-            columns[:, j] = work[acc] - free
-        torque[:, i] = np.linalg.solve(columns, qdd[:, i] - free)
+        if flight[i]:
+            y = np.concatenate([[0.0, FLIGHT_HEIGHT], q[:, i], [0.0, 0.0], qd[:, i]])
+            actuated = np.arange(nb + 1, nb + n)
+            free, columns = _torque_columns(y, n + nb, actuated, seg, flying, work)
+            torque[1:, i] = np.linalg.solve(columns[actuated], qdd[1:, i] - free[actuated])
+        else:
+            y = np.concatenate([q[:, i], qd[:, i]])
+            free, columns = _torque_columns(y, n, np.arange(n), seg, planted, work)
+            torque[:, i] = np.linalg.solve(columns, qdd[:, i] - free)
     return t, q, qd, torque
 
 

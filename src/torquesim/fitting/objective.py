@@ -7,11 +7,15 @@ joint j with weight w_j (weights sum to 1) and target sample k = 1…K,
     velocity   w_ω · √(w_j/K) · (q̇_j(t_k) − q̇*_j(t_k)) · 1 s                  (w_ω > 0)
     end        w_end · √w_j · (q_j(T) − q*_j(T)),  w_end · √w_j · (q̇_j(T) − q̇*_j(T)) · 1 s
     effort     √(w_a/K) · max(a_u(t_k) − rest_u, 0)  for every unit u         (w_a > 0)
+    channel    s_c/√K · (y_c(t_k) − y*_c(t_k))  for every target channel c of a body on the
+               ground: total GRF in N with s_c = w_grf/(m·g), centre of mass in m with
+               s_c = w_com (`torquesim.model.body.ground_outputs`, linear between steps)
 
 so that ‖r‖² = Σ_j w_j·MSE_j + w_ω²·(velocity MSE) + w_end²·(end errors²) + w_a·Σ_u mean_k
-(a_u − rest_u)₊². With every weight 0 and one joint, ‖r‖ is the RMS angle error. The score is
-‖r‖ (degrees). A run that goes non-finite, diverges or (explicit muscle solvers) exceeds the
-RK4 stability limit anywhere fails: its residuals are all FAILED_SCORE/√R, score
+(a_u − rest_u)₊² + Σ_c s_c²·MSE_c. With every weight 0 and one joint, ‖r‖ is the RMS angle
+error. The score is ‖r‖ (degrees). A run that goes non-finite, diverges, exceeds the RK4
+stability limit anywhere in a ground contact (explicit in every technique) or, with explicit
+muscle solvers, in a unit fails: its residuals are all FAILED_SCORE/√R, score
 `FAILED_SCORE`, so it can never win.
 """
 
@@ -23,6 +27,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..model.activation import activation
+from ..model.body import body_work_size, ground_outputs
 from ..solvers import fixed_step as fs
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
@@ -67,12 +72,15 @@ def sample_joint(states, step, times, joint, n, theta_out, omega_out):
 
 @njit(cache=True, error_model="numpy")
 def simulate_candidate(x, loop, coupling, y0, step, n_steps, seg, joints, units, levels,
-                       explicit_muscles, times, scored, theta_out, omega_out, profiles):
+                       explicit_muscles, times, scored, theta_out, omega_out, profiles,
+                       channels, channel_out):
     """Simulate the ramp vector ``x`` (9 per unit) on the packed chain with the step loop the
     switches ``loop`` choose (a tuple, `fixed_step.step_loop_switches`), unit u starting at
-    ``levels[u]``; fill q, q̇ of the ``scored`` joints at ``times`` (rows of ``theta_out``,
-    ``omega_out``) and the packed ``profiles``. True if the run is usable (finite, not
-    diverged, within the RK4 stability limit when explicit).
+    ``levels[u]``; fill q, q̇ of the ``scored`` coordinates at ``times`` (rows of
+    ``theta_out``, ``omega_out``), the ground outputs ``channels`` (indices into
+    `GROUND_OUTPUTS`; rows of ``channel_out``) and the packed ``profiles``. True if the run
+    is usable (finite, not diverged, contacts within the RK4 stability limit, and units too
+    when explicit).
 
     The parameter arrays are copied first: candidates run in parallel threads, and the step
     loops' reference counting on arrays shared between threads would contend (measured: the
@@ -91,14 +99,41 @@ def simulate_candidate(x, loop, coupling, y0, step, n_steps, seg, joints, units,
         return False
     if explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
         return False
+    if stats[fs.CONTACT_RATIO] > fs.RK4_STABILITY_LIMIT:
+        return False
     for r in range(scored.shape[0]):
         sample_joint(states, step, times, scored[r], n, theta_out[r], omega_out[r])
+    if channels.shape[0] > 0:
+        sample_ground_outputs(states, step, times, n, seg, joints, channels, channel_out)
     return True
 
 
 @njit(cache=True, error_model="numpy")
+def sample_ground_outputs(states, step, times, n, seg, joints, channels, out):
+    """The ground outputs ``channels`` (`GROUND_OUTPUTS` indices) at ``times`` (s from the
+    start) from fixed-step states, linear between the values at the steps around each time
+    (``joints``: the 2-D joint rows)."""
+    joints = joints.ravel()
+    work = np.zeros(body_work_size(n, seg))
+    torque = np.zeros(n)
+    before = np.empty(4)
+    after = np.empty(4)
+    last = states.shape[0] - 1
+    for k in range(times.shape[0]):
+        s = times[k] / step
+        i = min(int(s), last - 1)
+        u = s - i
+        ground_outputs(states[i], n, seg, joints, torque, work, before)
+        ground_outputs(states[i + 1], n, seg, joints, torque, work, after)
+        for r in range(channels.shape[0]):
+            c = channels[r]
+            out[r, k] = (1.0 - u) * before[c] + u * after[c]
+
+
+@njit(cache=True, error_model="numpy")
 def fill_residual(theta, omega, target_theta, target_omega, weights, weight_velocity,
-                  weight_end, weight_effort, profiles, rests, times, out):
+                  weight_end, weight_effort, profiles, rests, times, channel_values,
+                  target_channels, channel_scales, out):
     """The residual vector of one simulated candidate (module docstring) into ``out``."""
     n_rows, n_samples = theta.shape
     i = 0
@@ -123,20 +158,26 @@ def fill_residual(theta, omega, target_theta, target_omega, weights, weight_velo
             for k in range(n_samples):
                 out[i] = w * max(activation(times[k], profiles[u]) - rests[u], 0.0)
                 i += 1
+    for r in range(channel_values.shape[0]):
+        w = channel_scales[r] * scale
+        for k in range(n_samples):
+            out[i] = w * (channel_values[r, k] - target_channels[r, k])
+            i += 1
 
 
 def residual_size(n_rows: int, n_samples: int, n_units: int, weight_velocity: float,
-                  weight_end: float, weight_effort: float) -> int:
+                  weight_end: float, weight_effort: float, n_channels: int = 0) -> int:
     """Length of the residual vector (module docstring)."""
     per_row = n_samples * (1 + (weight_velocity > 0)) + 2 * (weight_end > 0)
-    return n_rows * per_row + (n_units * n_samples if weight_effort > 0 else 0)
+    return n_rows * per_row + (n_units * n_samples if weight_effort > 0 else 0) \
+        + n_channels * n_samples
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def residual_population(population, loop, coupling, y0, step, n_steps, seg, joints, units,
                         levels, rests, explicit_muscles, times, scored, target_theta,
                         target_omega, weights, weight_velocity, weight_end, weight_effort,
-                        residuals, failed):
+                        channels, target_channels, channel_scales, residuals, failed):
     """Residuals (rows of ``residuals``) and failure flags of every row of ``population``
     (m × 9U), simulated in parallel threads with the step loop chosen by the switches ``loop``
     (`fixed_step.step_loop_switches`): only that loop is compiled into this function."""
@@ -146,12 +187,14 @@ def residual_population(population, loop, coupling, y0, step, n_steps, seg, join
         theta = np.empty((n_rows, n_samples))
         omega = np.empty((n_rows, n_samples))
         profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
+        values = np.empty((channels.shape[0], n_samples))
         ok = simulate_candidate(population[j], loop, coupling, y0, step, n_steps, seg, joints,
                                 units, levels, explicit_muscles, times, scored, theta, omega,
-                                profiles)
+                                profiles, channels, values)
         if ok:
             fill_residual(theta, omega, target_theta, target_omega, weights, weight_velocity,
-                          weight_end, weight_effort, profiles, rests, times, residuals[j])
+                          weight_end, weight_effort, profiles, rests, times, values,
+                          target_channels, channel_scales, residuals[j])
             failed[j] = False
         else:
             residuals[j, :] = failed_value

@@ -54,6 +54,13 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
     if fitted.message:  # stability limit broken, or activation ramps not resolved
         warnings.append(fitted.message)
     free = set(problem.space.free.tolist())
+    no_channels = {c: (math.inf, math.inf) for c in problem.target.channels}
+    own = problem.channel_errors(fitted) if fitted.success else no_channels
+    theirs = problem.channel_errors(reference) if reference.success else no_channels
+    channels = {c: {"unit": "% body weight" if c.startswith("grf") else "cm",
+                    "rms_error": own[c][0], "max_error": own[c][1],
+                    "reference_rms_error": theirs[c][0], "reference_max_error": theirs[c][1]}
+                for c in problem.target.channels}
     return {
         **provenance(),
         "target": {"source": problem.target.source, "samples": int(problem.target.time.size),
@@ -66,7 +73,9 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         "weights": {"joints": dict(zip(problem.target.joints, problem.weights.tolist(),
                                        strict=True)),
                     "velocity": problem.weight_velocity, "end_state": problem.weight_end,
-                    "effort": problem.weight_effort},
+                    "effort": problem.weight_effort,
+                    **({"grf_deg_per_body_weight": problem.weight_grf,
+                        "com_deg_per_m": problem.weight_com} if channels else {})},
         "initial_levels": dict(zip(problem.space.units, problem.levels.tolist(), strict=True)),
         "mean_activation": problem.mean_activations(outcome.x),
         "free_parameters": [n for i, n in enumerate(problem.space.names) if i in free],
@@ -78,6 +87,7 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
                        "reference_rms_error_deg": ref_errors[j][0],
                        "reference_max_error_deg": ref_errors[j][1]}
                    for j in problem.target.joints},
+        "channels": channels,
         "objective_deg": outcome.score, "initial_guess_objective_deg": outcome.initial_score,
         "simulations": outcome.simulations, "failed_simulations": outcome.failed_simulations,
         "wall_time_s": outcome.wall_time,
@@ -97,8 +107,9 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
 
 
 def motion_columns(problem: FitProblem, summary: dict, units: str) -> dict[str, np.ndarray]:
-    """time; per joint the target (scored joints), fitted and reference angle; per unit the
-    activation. Angles in ``units`` ("deg" or "rad")."""
+    """time; per joint the target (scored joints), fitted and reference angle; per target
+    channel (a body on the ground) its target, fitted and reference values (N, m); per unit
+    the activation. Angles in ``units`` ("deg" or "rad")."""
     fitted, reference = summary["_results"]
     convert = np.degrees if units == "deg" else np.asarray
     elapsed = problem.target.elapsed
@@ -111,6 +122,12 @@ def motion_columns(problem: FitProblem, summary: dict, units: str) -> dict[str, 
                                                             fitted.q[:, j]))
         columns[f"{joint.name}_reference"] = convert(np.interp(elapsed, reference.time,
                                                                reference.q[:, j]))
+    fitted_columns, reference_columns = fitted.columns(), reference.columns()
+    for name, goal in problem.target.channels.items():  # N and m, as they are
+        columns[f"{name}_target"] = goal
+        columns[f"{name}_fitted"] = np.interp(elapsed, fitted.time, fitted_columns[name])
+        columns[f"{name}_reference"] = np.interp(elapsed, reference.time,
+                                                 reference_columns[name])
     for unit, level in zip(fitted.model.units, problem.activations(summary["_x"]),
                            strict=True):
         columns[f"activation_{unit.name}"] = level
@@ -126,14 +143,16 @@ def write_outputs(out_dir, problem: FitProblem, outcome: FitOutcome, summary: di
     fitted, reference = summary["_results"]
     save_model(fitted.model.replace(notes=(*fit_notes(summary), *fitted.model.notes)),
                out / MODEL_FILE, "--out")
-    write_table(out / MOTION_FILE, {k if k == "time" or k.startswith("activation") else
-                                    f"{k}_deg": v for k, v in
+    channels = tuple(problem.target.channels)
+    write_table(out / MOTION_FILE, {k if k == "time" or k.startswith(("activation", *channels))
+                                    else f"{k}_deg": v for k, v in
                                     motion_columns(problem, summary, "deg").items()})
     write_table(out / STORAGE_FILE, motion_columns(problem, summary, "rad"),
                 name="torquesim fit")
     elapsed = problem.target.elapsed
     figure = plot_result(reference, target={j: (elapsed, problem.target.angles[r])
-                                            for r, j in enumerate(problem.target.joints)})
+                                            for r, j in enumerate(problem.target.joints)},
+                         channels={c: (elapsed, v) for c, v in problem.target.channels.items()})
     figure.suptitle(f"torquesim fit: {problem.target.source}; RMS "
                     f"{summary['reference_rms_error_deg']:.3f}° (reference solver)")
     save_figure(figure, out / FIGURE_FILE, "--out")
@@ -148,6 +167,8 @@ def fit_notes(summary: dict) -> list[str]:
     joints = "; ".join(f"{j} RMS {e['reference_rms_error_deg']:.3f} deg (reference), "
                        f"{e['rms_error_deg']:.3f} deg (fit)"
                        for j, e in summary["joints"].items())
+    joints += "".join(f"; {c} RMS {e['reference_rms_error']:.3g} {e['unit']} (reference)"
+                      for c, e in summary.get("channels", {}).items())
     settings = summary["settings"]
     return [f"Activation ramps fitted by torquesim {summary['torquesim_version']} on "
             f"{summary['created']} to {summary['target']['source']} "
@@ -180,6 +201,10 @@ def summary_lines(summary: dict) -> list[str]:
     if len(joints) > 1:
         lines.append(f"all joints    RMS {summary['rms_error_deg']:.3f} deg; reference RMS "
                      f"{summary['reference_rms_error_deg']:.3f} deg")
+    for name, e in summary.get("channels", {}).items():
+        lines.append(f"{name:<13} RMS {e['rms_error']:.3f} {e['unit']}, max "
+                     f"{e['max_error']:.3f}; reference RMS {e['reference_rms_error']:.3f}, max "
+                     f"{e['reference_max_error']:.3f} {e['unit']}")
     lines += [
         "reference     = the fitted model re-simulated with Radau",
         "activation    mean " + ", ".join(f"{u} {a:.3f}"

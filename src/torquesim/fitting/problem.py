@@ -16,12 +16,33 @@ from ..solvers.coupling import IMEX, Coupling
 from ..solvers.techniques import FIT_METHODS
 from . import objective as obj
 from .parameters import ParameterSpace, with_ramps
-from .target import Target, require_fixed_base
+from .target import CHANNELS, Target, check_channels
 
 DEFAULT_METHOD = "imex"
 #: Default fit step, s: IMEX is stable at any step; 5 ms keeps it within ~0.3° of the
 #: reference on the default curl.
 DEFAULT_STEP = 5.0e-3
+#: Steps a body on the ground may default to, s, largest first (`default_step`).
+GROUND_STEPS = (5e-3, 2.5e-3, 1e-3, 5e-4, 2.5e-4, 1e-4, 5e-5, 2.5e-5, 1e-5)
+#: A body on the ground's default step stays within this fraction of its contacts' RK4
+#: stability limit on the model's own run (a fit's candidates push harder or softer).
+GROUND_STEP_MARGIN = 0.7
+
+
+def default_step(model) -> float:
+    """The fit's default step, s: `DEFAULT_STEP` on a fixed base. On a body on the ground,
+    whose contacts every technique integrates explicitly, the largest of `GROUND_STEPS`
+    within `GROUND_STEP_MARGIN` of the contacts' RK4 limit 2.785·τ, τ their smallest time
+    constant on a run of the model as it is (IMEX at the smallest of those steps)."""
+    if model.base != "free" or not model.contacts:
+        return DEFAULT_STEP
+    from ..solvers.simulation import simulate
+
+    probe = GROUND_STEPS[-1] if model.duration / GROUND_STEPS[-1] <= 2e5 else GROUND_STEPS[-3]
+    run = simulate(model, "imex", probe, check=False, advise=False, tolerance=None)
+    tau = run.settings.get("contact_time_constant_min_s", math.inf)
+    bound = GROUND_STEP_MARGIN * fs.RK4_STABILITY_LIMIT * tau
+    return next((h for h in GROUND_STEPS if h <= bound), GROUND_STEPS[-1])
 
 
 #: The smallest fit step, s (a fit simulates its model thousands of times).
@@ -41,7 +62,8 @@ class FitProblem:
 
     The model spans the target: each scored joint starts at its first target angle (the
     others at the model's initial angle), at rest in static equilibrium, and the duration is
-    the target's span. Every unit's activation is 3 ramps (9 parameters,
+    the target's span; ``step`` (s) defaults to `default_step`. Every unit's activation is
+    3 ramps (9 parameters,
     `ParameterSpace`) from its equilibrium or rest level. ``residuals`` and
     ``evaluate`` simulate candidate parameter vectors (see
     `torquesim.fitting.objective`) and count simulations.
@@ -57,17 +79,26 @@ class FitProblem:
         objective (rest_u: the unit's given initial level, 0 for units starting from
         equilibrium), so that among fits of equal angle error the least effort wins. Default
         0. Bounds [0, 1e6].
+    weight_grf : float
+        w_grf, deg per body weight: a target's ground reaction force channels add
+        w_grf²·MSE(F/(m·g)) to the squared objective, so that with the default 20 an RMS error
+        of 5 % of body weight weighs as much as 1° RMS on a joint. Bounds [0, 1e4].
+    weight_com : float
+        w_com, deg per m: a target's centre-of-mass channels add w_com²·MSE(x_CoM); default 100
+        (1 cm as 1°). Bounds [0, 1e5].
     """
 
     target: Target
     space: ParameterSpace | None = None
     base_model: object = None
     method: str = DEFAULT_METHOD
-    step: float = DEFAULT_STEP
+    step: float | None = None
     weight_velocity: float = 0.0
     weight_end: float = 0.0
     weight_effort: float = 0.0
     joint_weights: dict | None = None
+    weight_grf: float = 20.0
+    weight_com: float = 100.0
     simulations: int = 0
     failed_simulations: int = 0
 
@@ -77,11 +108,13 @@ class FitProblem:
         check_range("weight_velocity", self.weight_velocity, 0.0, 1e3)
         check_range("weight_end", self.weight_end, 0.0, 1e3)
         check_range("weight_effort", self.weight_effort, 0.0, 1e6)
+        check_range("weight_grf", self.weight_grf, 0.0, 1e4)
+        check_range("weight_com", self.weight_com, 0.0, 1e5)
         base = as_chain(self.base_model if self.base_model is not None
                         else preset("builtin:elbow-curl"))
         if not isinstance(base, ChainModel):
             raise TypeError("base_model: expected a model")
-        require_fixed_base(base)
+        check_channels(base, self.target)
         if self.space is None:
             self.space = ParameterSpace.for_model(base)
         if self.space.units != tuple(u.name for u in base.units):
@@ -93,7 +126,9 @@ class FitProblem:
             if joint not in names:
                 raise ModelError("target", f"scores joint {joint!r}, which the model does not "
                                  f"have; allowed: {', '.join(names)}")
-        self.scored = np.array([names.index(j) for j in self.target.joints], dtype=np.int64)
+        # the state's coordinate of each scored joint (a free base's x, y come first)
+        self.scored = np.array([base.n_base + names.index(j) for j in self.target.joints],
+                               dtype=np.int64)
         weights = {j: 1.0 for j in self.target.joints} | dict(self.joint_weights or {})
         for joint, w in weights.items():
             if joint not in self.target.joints:
@@ -104,6 +139,8 @@ class FitProblem:
         if raw.sum() <= 0:
             raise ModelError("weight", "every joint weight is 0; allowed: at least one > 0")
         self.weights = raw / raw.sum()
+        if self.step is None:
+            self.step = default_step(base)
         self.requested_step = self.step
         self.step, self.n_steps = fit_step(self.target.duration, self.step)
         # initial levels: "equilibrium" units keep it; the others the rest level
@@ -130,13 +167,22 @@ class FitProblem:
         self.arrays = (packed.segments, packed.joints, packed.units)
         self.step_loop = fs.step_loop_switches(self.method == "monolithic", base.n_coordinates,
                                                self.coupling.to_array(),
-                                               base.has_activation_dynamics)
+                                               base.has_activation_dynamics,
+                                               base.base == "free", not base.is_serial)
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
         self.target_angles = np.ascontiguousarray(self.target.angles)
+        channels = self.target.channels
+        self.channels = np.array([CHANNELS.index(c) for c in channels], dtype=np.int64)
+        self.target_channels = np.ascontiguousarray(
+            np.array(list(channels.values())).reshape(len(channels), self.times.size))
+        self.body_weight = base.gravity * sum(s.total_mass for s in base.segments)
+        self.channel_scales = np.array([self.weight_grf / self.body_weight if c.startswith("grf")
+                                        else self.weight_com for c in channels])
         self.residual_size = obj.residual_size(len(self.scored), self.times.size,
                                                len(base.units), self.weight_velocity,
-                                               self.weight_end, self.weight_effort)
+                                               self.weight_end, self.weight_effort,
+                                               len(channels))
 
     @property
     def explicit_muscles(self) -> bool:
@@ -154,7 +200,8 @@ class FitProblem:
             self.coupling.to_array(), self.y0, self.step, self.n_steps, seg, joints, units,
             self.levels, self.rests, self.explicit_muscles, self.times, self.scored,
             self.target_angles, self.target_omega, self.weights, self.weight_velocity,
-            self.weight_end, self.weight_effort, out, failed)
+            self.weight_end, self.weight_effort, self.channels, self.target_channels,
+            self.channel_scales, out, failed)
         self.simulations += population.shape[0]
         self.failed_simulations += int(failed.sum())
         return out, failed
@@ -171,16 +218,28 @@ class FitProblem:
     def errors_deg(self, result) -> dict[str, tuple[float, float]]:
         """(RMS, max) angle error per scored joint of a simulation result at the target
         samples, deg; fixed-step results are sampled as in the fit (cubic Hermite)."""
-        n = result.model.n_joints
+        n = result.model.n_coordinates
         out = {}
         for row, (joint, j) in enumerate(zip(self.target.joints, self.scored, strict=True)):
             if result.step is not None:
                 q, qd = np.empty_like(self.times), np.empty_like(self.times)
                 obj.sample_joint(result.states, result.step, self.times, int(j), n, q, qd)
             else:
-                q = np.interp(self.times, result.time, result.q[:, j])
+                q = np.interp(self.times, result.time, result.states[:, j])
             error = np.degrees(q - self.target.angles[row])
             out[joint] = (float(np.sqrt(np.mean(error**2))), float(np.max(np.abs(error))))
+        return out
+
+    def channel_errors(self, result) -> dict[str, tuple[float, float]]:
+        """(RMS, max) error of each target channel of a simulation result at the target
+        samples: ground reaction forces in % of body weight, the centre of mass in cm."""
+        columns = result.columns()
+        out = {}
+        for name, target in self.target.channels.items():
+            value = np.interp(self.times, result.time - result.time[0], columns[name])
+            error = (value - target) * (100.0 / self.body_weight if name.startswith("grf")
+                                        else 100.0)
+            out[name] = (float(np.sqrt(np.mean(error**2))), float(np.max(np.abs(error))))
         return out
 
     def overall_rms(self, errors: dict[str, tuple[float, float]]) -> float:

@@ -1,19 +1,26 @@
-"""The motion a fit must reproduce: measured joint angle histories (one per scored joint), or
-a built-in minimum-jerk motion for each preset."""
+"""The motion a fit must reproduce: measured joint angle histories (one per scored joint) and,
+for a body on the ground, ground reaction force and centre-of-mass histories; or a built-in
+motion for each preset."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
 from ..errors import ModelError
 from ..io.target_file import read_angle_table
+from ..model.body import GROUND_OUTPUTS
 
 #: Sample interval of the built-in targets, s (100 Hz, a usual motion-capture rate).
 BUILTIN_SAMPLE_INTERVAL = 0.01
 BUILTIN_CURL = "builtin:curl"
+#: What a target may hold besides joint angles, as torquesim's results name them: the total
+#: ground reaction force (N) and the centre of mass position (m), ground frame (x forwards,
+#: y up). Only a body on the ground (base = "free") has them.
+CHANNELS = GROUND_OUTPUTS
 
 
 @dataclass(frozen=True)
@@ -31,12 +38,16 @@ class Target:
         simulated but not scored.
     source : str
         Where it came from (file name and columns, or ``builtin:NAME``).
+    channels : dict
+        Optional histories besides the angles, at the same times: `CHANNELS` name → samples
+        (``grf_x``, ``grf_y`` in N; ``com_x``, ``com_y`` in m).
     """
 
     time: np.ndarray = field(repr=False)
     angles: np.ndarray = field(repr=False)
     joints: tuple[str, ...] = ("elbow",)
     source: str = ""
+    channels: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         angles = np.atleast_2d(np.asarray(self.angles, dtype=float))
@@ -44,6 +55,20 @@ class Target:
         if angles.shape != (len(self.joints), np.size(self.time)):
             raise ModelError("target", f"{angles.shape} angles for {len(self.joints)} joints "
                              f"and {np.size(self.time)} samples")
+        channels = {}
+        for name in sorted(self.channels, key=lambda c: CHANNELS.index(c)
+                           if c in CHANNELS else len(CHANNELS)):
+            if name not in CHANNELS:
+                raise ModelError("target", f"channel {name!r}; allowed: {', '.join(CHANNELS)}")
+            values = np.asarray(self.channels[name], dtype=float)
+            if values.shape != (np.size(self.time),):
+                raise ModelError("target", f"channel {name!r} has {values.size} samples, the "
+                                 f"time {np.size(self.time)}; allowed: one per sample")
+            if not np.all(np.isfinite(values)):
+                raise ModelError("target", f"channel {name!r} is not finite everywhere; "
+                                 "allowed: finite numbers")
+            channels[name] = values
+        object.__setattr__(self, "channels", channels)
 
     @property
     def angle(self) -> np.ndarray:
@@ -102,8 +127,25 @@ def raise_hold_lower(joints: dict[str, tuple[float, float]], source: str) -> Tar
     return Target(t, np.array(rows), tuple(joints), source)
 
 
+@lru_cache(maxsize=1)
+def squat_jump_motion(sample_interval: float = 0.005) -> Target:
+    """The preset squat jump simulated with the reference solver (SciPy Radau, rtol 1e-10),
+    sampled at 200 Hz: the four joint angles, the total ground reaction force and the centre
+    of mass, as a force plate and motion capture would record them."""
+    from ..model.presets import preset
+    from ..solvers.simulation import simulate
+
+    model = preset("builtin:squat-jump")
+    run = simulate(model, "reference", output_step=sample_interval)
+    columns = run.columns()
+    joints = tuple(j.name for j in model.joints)
+    return Target(run.time, run.q.T.copy(), joints, "builtin:squat-jump",
+                  {name: columns[name] for name in CHANNELS})
+
+
 #: ``builtin:NAME`` targets: the motion of each preset.
 BUILTIN_TARGETS = {
+    "squat-jump": squat_jump_motion,
     "curl": min_jerk_curl,
     "elbow-curl": min_jerk_curl,
     "knee-extension": lambda: raise_hold_lower({"knee": (90.0, 15.0)},
@@ -128,12 +170,18 @@ def _auto_column(joint, names: list[str], one_joint: bool) -> str | None:
     return None
 
 
-def require_fixed_base(chain) -> None:
-    """A one-line `ModelError` for a body on the ground: fitting one is not built yet."""
-    if chain.base == "free":
-        raise ModelError("model", f"{chain.name} stands on the ground (base = \"free\"): "
-                         "fitting such a body is not built yet; allowed: a model on a fixed "
-                         "base")
+def check_channels(chain, target: Target) -> None:
+    """A one-line `ModelError` unless ``chain`` has what the target's channels measure: a free
+    base, and ground contacts for a ground reaction force."""
+    if not target.channels:
+        return
+    names = ", ".join(target.channels)
+    if chain.base != "free":
+        raise ModelError("target", f"holds {names}, which only a body on the ground has; "
+                         f"{chain.name!r} hangs from a fixed base; allowed: joint angles only")
+    if not chain.contacts and any(c.startswith("grf") for c in target.channels):
+        raise ModelError("target", f"holds a ground reaction force but {chain.name!r} has no "
+                         "ground contact; allowed: com_x, com_y and joint angles")
 
 
 def load_target(spec: str, model=None, columns=None, units: str | None = None) -> Target:
@@ -144,13 +192,14 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
     columns by name (the joint's coordinate, e.g. ``elbow_flexion``; its name; the only column
     containing its name) or by ``columns`` {joint: column}; on a one-joint model ``columns``
     may be a column name. Joints without a column are simulated but not scored; at least one
-    joint must be matched.
+    joint must be matched. On a body on the ground, columns named after a `CHANNELS` entry
+    (``grf_y`` …, as torquesim's results name them; or mapped by ``columns``, e.g.
+    {"grf_y": "ground_force_vy"}) are read as they are (N, m) and scored too.
     """
     from ..model.chain import as_chain
     from ..model.presets import preset
 
     chain = as_chain(model) if model is not None else preset("builtin:elbow-curl")
-    require_fixed_base(chain)
     joint_names = [j.name for j in chain.joints]
     if spec.startswith("builtin:"):
         name = spec.split(":", 1)[1]
@@ -163,6 +212,7 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
             raise ModelError("target", f"{spec} moves joint(s) {', '.join(missing)}, which the "
                              f"model {chain.name!r} does not have (joints: "
                              f"{', '.join(joint_names)})")
+        check_channels(chain, target)
         return target
     if isinstance(columns, str):
         if chain.n_joints != 1:
@@ -171,10 +221,11 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
         columns = {joint_names[0]: columns}
     columns = dict(columns or {})
     for joint in columns:
-        if joint not in joint_names:
+        if joint not in joint_names and joint not in CHANNELS:
             raise ModelError("column", f"{joint!r} is not a joint of the model; allowed: "
-                             f"{', '.join(joint_names)}")
+                             f"{', '.join(joint_names + list(CHANNELS))}")
     mapping: dict[str, str] = {}
+    channel_columns: dict[str, str] = {}
 
     def pick(names: list[str]) -> list[str]:
         for joint in chain.joints:
@@ -186,13 +237,27 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
             raise ModelError("target", f"{spec}: no column matches a joint of the model "
                              f"({', '.join(j.coordinate for j in chain.joints)}); columns: "
                              f"{', '.join(names)}; allowed: --column JOINT=COLUMN")
-        return list(dict.fromkeys(mapping.values()))
+        if chain.base == "free":
+            lower = {n.lower(): n for n in names}
+            for channel in CHANNELS:
+                column = columns.get(channel) or lower.get(channel)
+                if column is not None:
+                    channel_columns[channel] = column
+        elif any(c in columns for c in CHANNELS):
+            raise ModelError("column", f"{', '.join(c for c in columns if c in CHANNELS)}: "
+                             f"only a body on the ground has them; {chain.name!r} hangs "
+                             "from a fixed base; allowed: JOINT=COLUMN")
+        return list(dict.fromkeys([*mapping.values(), *channel_columns.values()]))
 
-    time, angles = read_angle_table(spec, units, columns=pick)
+    time, angles = read_angle_table(spec, units, columns=pick,
+                                    raw=lambda: set(channel_columns.values()))
     if time[-1] - time[0] > 600.0:
         raise ModelError("target", f"{spec}: spans {time[-1] - time[0]:g} s; allowed at most "
                          "600 s")
     joints = tuple(mapping)
-    described = ", ".join(f"{j}={mapping[j]}" for j in joints)
-    return Target(time, np.array([angles[mapping[j]] for j in joints]), joints,
-                  f"{spec} [{described}]")
+    described = ", ".join(f"{j}={c}" for j, c in [*mapping.items(), *channel_columns.items()])
+    target = Target(time, np.array([angles[mapping[j]] for j in joints]), joints,
+                    f"{spec} [{described}]",
+                    {c: angles[column] for c, column in channel_columns.items()})
+    check_channels(chain, target)
+    return target

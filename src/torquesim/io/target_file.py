@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +53,7 @@ def _number(path: Path, text: str, line: int, column: str) -> float:
 def read_angle_table(
     path, units: str | None = None,
     columns: Callable[[list[str]], list[str]] | list[str] | None = None,
+    raw: Callable[[], Collection[str]] | Collection[str] = (),
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Time (s) and every angle column (rad) of a CSV or OpenSim ``.mot``/``.sto`` file.
 
@@ -64,8 +65,10 @@ def read_angle_table(
     key ``units`` applies, default degrees). Time must increase strictly; every cell of the
     columns read must be a finite number, and no angle may exceed a full turn (the wrong
     units). ``columns`` limits the columns read (and checked) to those names; it may be a
-    function of the angle column names that returns them. Errors name the file, line and
-    column. Returns (time, {column name: angle in rad}).
+    function of the angle column names that returns them. Columns named in ``raw`` (or by
+    ``raw()``, called after ``columns``) are not angles: they are read as they are (forces in
+    N, positions in m), with no unit conversion. Errors name the file, line and column.
+    Returns (time, {column name: angle in rad, or the raw column's values}).
     """
     path = Path(path)
     if units is not None and units not in UNITS:
@@ -135,9 +138,14 @@ def read_angle_table(
     if len(time) < MIN_SAMPLES:
         raise _fail(path, f"{len(time)} samples; allowed at least {MIN_SAMPLES}")
     table = np.array(angle).reshape(len(time), len(a_cols))
-    table = np.radians(table) if (units or "deg") == "deg" else table
+    as_is = set(raw() if callable(raw) else raw)
     out = {}
     for i, name in enumerate(wanted):
+        if name in as_is:
+            out[name] = np.ascontiguousarray(table[:, i])
+            continue
+        if (units or "deg") == "deg":
+            table[:, i] = np.radians(table[:, i])
         worst = float(np.max(np.abs(table[:, i])))
         if worst > 2 * math.pi:
             raise _fail(path, f"column {name!r}: {math.degrees(worst):.4g}° is more than a "
