@@ -1,6 +1,6 @@
 """Fit benchmarks of the chain-fitting issue, all measured in one run.
 
-Run:  python benchmarks/bench_fit.py [--skip curl,arm,effort] [--no-global] [--write-docs]
+Run:  python benchmarks/bench_fit.py [--skip curl,arm,effort,jump] [--no-global] [--write-docs]
 
 Prints, on this machine (compilation is done before any timing). Every fit is what
 ``torquesim fit`` runs: the search, then the integration-error control (`fit_to_accuracy`:
@@ -19,13 +19,20 @@ docs/fitting.md (with the date and load).
    throughout), fitted without and with ``--weight-effort`` 1 and 10: the antagonist's
    mean activation and the angle RMS. Target: within 0.05 of the generating 0.05, RMS within
    0.2° of the unweighted fit.
+4. ``builtin:squat-jump`` on its own built-in target (four angles, total GRF and CoM; the
+   preset simulated by the reference): RMS per joint and of the vertical GRF (% of body
+   weight) with the reference, the fit's wall time, and the whole ``torquesim fit --model
+   builtin:squat-jump`` command timed warm in a subprocess (target, fit, re-simulations,
+   outputs). Target: ≤ 1° per joint and ≤ 5 % of body weight in ≤ 2 minutes.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -136,6 +143,38 @@ def effort() -> None:
               f"unweighted: {rms <= plain + 0.2}); {wall:.1f} s")
 
 
+JUMP: list[tuple] = []
+
+
+def jump() -> None:
+    model = ts.load_model("builtin:squat-jump")
+    target = load_target("builtin:squat-jump", model)
+    print("4. builtin:squat-jump on its own target (angles, GRF, CoM; 54 parameters)")
+    problem, outcome, wall, errors, own = timed_fit(FitProblem(target, base_model=model),
+                                                    SearchSettings())
+    reference = ts.simulate(problem.model_for(outcome.x), "reference", output_step=0.005)
+    channels = problem.channel_errors(reference)
+    for joint, (rms, worst) in errors.items():
+        print(f"   {joint:<11} {rms:.3f} deg RMS, {worst:.3f} deg max (reference)")
+    for name, (rms, worst) in channels.items():
+        unit = "% body weight" if name.startswith("grf") else "cm"
+        print(f"   {name:<11} {rms:.3f} {unit} RMS, {worst:.3f} max (reference)")
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        subprocess.run(["torquesim", "fit", "--model", "builtin:squat-jump", "--quiet",
+                        "--out", str(Path(folder) / "jump")], check=True,
+                       stdout=subprocess.DEVNULL)
+        command = time.perf_counter() - start
+    met = (all(e[0] <= 1.0 for e in errors.values()) and channels["grf_y"][0] <= 5.0
+           and command <= 120.0)
+    print(f"   {outcome.simulations} simulations; final step {problem.step * 1e3:g} ms; fit "
+          f"{wall:.1f} s; the whole command {command:.1f} s; target ≤ 1 deg per joint, "
+          f"≤ 5 % body weight, ≤ 120 s: {met}")
+    JUMP.append((max(e[0] for e in errors.values()), channels["grf_y"][0],
+                 max(channels[c][0] for c in ("com_x", "com_y")), outcome.simulations,
+                 problem.step * 1e3, wall, command))
+
+
 def docs_block(load: float) -> str:
     lines = [f"Measured by `python benchmarks/bench_fit.py --write-docs` ({measured_on(load)};",
              f"{numba.config.NUMBA_NUM_THREADS} Numba threads, compilation excluded). RMS and "
@@ -153,12 +192,21 @@ def docs_block(load: float) -> str:
                   "| `--weight-effort` | RMS with the reference | extensor mean activation |",
                   "|---|---|---|"]
         lines += [f"| {w:g} | {rms:.3f}° | {mean:.3f} |" for w, rms, mean in EFFORT]
+    if JUMP:
+        lines += ["", "The squat jump on its own built-in target (four angles, total GRF and "
+                  "centre of mass; 54 parameters), errors", "with the reference solver; "
+                  "\"command\" is the whole `torquesim fit --model builtin:squat-jump`, warm:",
+                  "", "| worst joint RMS | vertical GRF RMS | CoM RMS | simulations | step | fit "
+                  "| command |", "|---|---|---|---|---|---|---|"]
+        lines += [f"| {j:.3f}° | {g:.3f} % body weight | {c:.4f} cm | {n} | {h:g} ms | "
+                  f"{w:.1f} s | **{cmd:.1f} s** |" for j, g, c, n, h, w, cmd in JUMP]
     return "\n".join(lines) + "\n"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--skip", default="", help="comma-separated: curl, arm, effort")
+    parser.add_argument("--skip", default="",
+                        help="comma-separated: curl, arm, effort, jump")
     parser.add_argument("--no-global", action="store_true",
                         help="skip the differential-evolution comparison (~1 min)")
     parser.add_argument("--write-docs", action="store_true",
@@ -174,6 +222,8 @@ def main() -> None:
         arm()
     if "effort" not in skip:
         effort()
+    if "jump" not in skip:
+        jump()
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
     if args.write_docs:
         write_blocks("docs/fitting.md", {"fit-benchmark": docs_block(load)})
