@@ -11,6 +11,8 @@ import re
 from datetime import UTC, datetime
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parent.parent
 BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)"
                    r"(<!-- end generated -->)", re.S)
@@ -22,7 +24,11 @@ PAGES = {
     "docs/fitting.md": {"fit-benchmark"},
     "docs/batch.md": {"batch-benchmark"},
     "docs/concepts.md": {"techniques"},
+    "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",
+                        "motion-squat-jump"},
 }
+#: The presets whose motion `preset_motion_blocks` describes, in page order.
+MOTION_PRESETS = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump")
 
 
 def techniques_block() -> str:
@@ -40,6 +46,42 @@ def techniques_block() -> str:
     return ("Every technique torquesim knows, from its registry "
             "(`torquesim.solvers.techniques`; the order is the declared one, which the tests "
             "measure on two smooth cases):\n\n" + "\n".join(lines) + "\n")
+
+
+def _swing(time, angle) -> str:
+    """'start° → extreme° (t = …) → end°' of one joint's angle history (rad), the extreme
+    being the sample farthest from the start."""
+    deg = np.degrees(angle)
+    k = int(np.argmax(np.abs(deg - deg[0])))
+    return f"{deg[0]:.1f}° → {deg[k]:.1f}° (t = {time[k]:.2f} s) → {deg[-1]:.1f}°"
+
+
+def preset_motion_blocks() -> dict[str, str]:
+    """The motion of each preset as the reference solver (Radau) gives it, for
+    docs/presets.md: per joint start → extreme (time) → end; for a body on the ground its
+    take-off, centre-of-mass rise and peak ground reaction force. Cheap (a few seconds), so
+    ``make_docs.py --check`` checks that the page shows the presets as they are."""
+    import torquesim as ts
+
+    blocks = {}
+    for name in MOTION_PRESETS:
+        model = ts.load_model(f"builtin:{name}")
+        ground = model.base == "free"
+        run = ts.simulate(model, "reference", output_step=1e-4 if ground else 1e-3)
+        if ground:
+            e = run.ground_events()
+            end = "in the air" if e.landing is None else f"after landing at {e.landing:.3f} s"
+            text = (f"Motion (Radau): take-off at {e.take_off:.3f} s, centre of mass "
+                    f"{e.rise:.3f} m above the squat at its apex ({e.apex_time:.3f} s), of which "
+                    f"the flight adds {e.flight_height:.3f} m; peak ground reaction force "
+                    f"{e.peak_force:.0f} N ({e.peak_force / e.weight:.2f} body weights) at "
+                    f"{e.peak_time:.3f} s. The run ends {end} at {model.duration:g} s.")
+        else:
+            parts = [f"{j.name} {_swing(run.time, run.q[:, k])}"
+                     for k, j in enumerate(model.joints)]
+            text = f"Motion (Radau): {'; '.join(parts)}, in {model.duration:g} s."
+        blocks[f"motion-{name}"] = text + "\n"
+    return blocks
 
 
 def current_block(page: str, name: str) -> str:

@@ -3,8 +3,10 @@
     python scripts/make_docs.py            # the study on the default curl and its sensitivity
                                            # to the SE stiffness (~15 min on 2 cores)
     python scripts/make_docs.py --check    # only check that every page holds its generated
-                                           # blocks (scripts/docblocks.py)
+                                           # blocks (scripts/docblocks.py) and that the cheap
+                                           # ones (techniques, presets' motions) are current
     python scripts/make_docs.py --jump     # only the study on the squat jump (~3 min)
+    python scripts/make_docs.py --presets  # only the presets' motions (docs/presets.md)
 
 Runs ``torquesim compare`` on the default curl into a temporary folder, copies its figures to
 ``docs/figures/`` and rewrites the blocks of ``docs/study.md`` between
@@ -29,6 +31,7 @@ from docblocks import (  # noqa: E402  (scripts/)
     ROOT,
     current_block,
     missing_blocks,
+    preset_motion_blocks,
     techniques_block,
     write_blocks,
 )
@@ -175,6 +178,8 @@ def main() -> None:
                         help="only rewrite the techniques table of docs/concepts.md")
     parser.add_argument("--jump", action="store_true",
                         help="only the study on the squat jump")
+    parser.add_argument("--presets", action="store_true",
+                        help="only the presets' motions of docs/presets.md")
     args = parser.parse_args()
     problems = missing_blocks()
     if problems:
@@ -184,7 +189,17 @@ def main() -> None:
             sys.exit("docs/concepts.md: the techniques table differs from the registry; run "
                      "python scripts/make_docs.py --techniques")
         write_blocks("docs/concepts.md", {"techniques": techniques_block()})
-    if args.check or args.techniques:
+    if args.techniques:
+        return
+    motions = preset_motion_blocks()
+    stale = [name for name, body in motions.items()
+             if current_block("docs/presets.md", name) != body]
+    if stale and args.check:
+        sys.exit(f"docs/presets.md: {', '.join(stale)} differ from the presets' motions; run "
+                 "python scripts/make_docs.py --presets")
+    if stale:
+        write_blocks("docs/presets.md", {name: motions[name] for name in stale})
+    if args.check or args.presets:
         return
     from torquesim.cli import main as torquesim
 

@@ -40,7 +40,7 @@ CHECKPOINT_VERSION = 2
 SEARCHES = ("least-squares", "global")
 #: Difference step of the Jacobian (s for delays and durations, activation for levels):
 #: forward, backward where the upper bound is closer.
-DIFFERENCE_STEP = 1e-5
+DIFFERENCE_STEP = 1e-6
 #: Residual evaluations each least-squares start gets before the best one is refined.
 SCREEN_EVALUATIONS = 6
 
