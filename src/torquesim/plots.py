@@ -30,7 +30,7 @@ def plot_result(result, *, target=None, channels=None):
                              (4.4 * ncols, 2.9 * (n + bool(channels)) + 0.8))
     if channels:
         _channel_row(axes[n], cols, channels,
-                     model.gravity * sum(s.total_mass for s in model.segments))
+                     model.weight)
     for row, joint in enumerate(model.joints):
         ax_angle, ax_torque, ax_act = axes[row][:3]
         angle = np.degrees(cols[joint.coordinate])
@@ -205,7 +205,7 @@ def animate_result(result, path, *, fps: int = 25) -> None:
     xy = lines.reshape(-1, 2)
     if model.contacts:
         columns = result.columns()
-        weight = model.gravity * sum(seg.total_mass for seg in model.segments)
+        weight = model.weight
         grf = np.column_stack([np.interp(times, result.time, columns[name])
                                for name in ("grf_x", "grf_y")]) / max(weight, 1e-12)
         cop = np.interp(times, result.time, np.nan_to_num(columns["cop_x"]))

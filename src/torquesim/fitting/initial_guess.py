@@ -62,8 +62,7 @@ def flight_samples(model, target, t) -> np.ndarray:
     and the target's vertical ground reaction force below `FLIGHT_FORCE` of body weight."""
     if model.base != "free" or "grf_y" not in target.channels:
         return np.zeros(t.size, dtype=bool)
-    weight = model.gravity * sum(s.total_mass for s in model.segments)
-    return np.interp(t, target.elapsed, target.channels["grf_y"]) < FLIGHT_FORCE * weight
+    return np.interp(t, target.elapsed, target.channels["grf_y"]) < FLIGHT_FORCE * model.weight
 
 
 def required_torques(model, target, spacing: float = GRID):

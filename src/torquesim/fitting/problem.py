@@ -176,7 +176,7 @@ class FitProblem:
         self.channels = np.array([CHANNELS.index(c) for c in channels], dtype=np.int64)
         self.target_channels = np.ascontiguousarray(
             np.array(list(channels.values())).reshape(len(channels), self.times.size))
-        self.body_weight = base.gravity * sum(s.total_mass for s in base.segments)
+        self.body_weight = base.weight
         self.channel_scales = np.array([self.weight_grf / self.body_weight if c.startswith("grf")
                                         else self.weight_com for c in channels])
         self.residual_size = obj.residual_size(len(self.scored), self.times.size,

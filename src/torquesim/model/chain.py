@@ -508,6 +508,11 @@ class ChainModel:
         return any(u.activation_dynamics is not None for u in self.units)
 
     @property
+    def weight(self) -> float:
+        """m·g, N: the whole body's weight (segments and their loads)."""
+        return self.gravity * sum(seg.total_mass for seg in self.segments)
+
+    @property
     def n_base(self) -> int:
         """Coordinates of the base before the joint angles: 2 (x, y) on a free base, else 0."""
         return len(BASE_COORDINATES) if self.base == "free" else 0
@@ -846,7 +851,7 @@ class ChainModel:
         the contacts, N·m). A `ModelError` when the centre of mass is not over the contacts."""
         from scipy.optimize import fsolve
 
-        weight = self.gravity * sum(seg.total_mass for seg in self.segments)
+        weight = self.weight
         masses = np.array([seg.total_mass for seg in self.segments])
         which = self._contact_points()
 

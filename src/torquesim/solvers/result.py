@@ -327,7 +327,7 @@ class SimulationResult:
             return None
         c = self.columns()
         loaded = c["grf_y"] > 0.0
-        weight = m.gravity * sum(seg.total_mass for seg in m.segments)
+        weight = m.weight
         peak = int(np.argmax(c["grf_y"]))
         rise = float(c["com_y"].max() - c["com_y"][0])
         take_off = landing = None
