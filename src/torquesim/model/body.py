@@ -447,7 +447,8 @@ def contact_time_constant(y, n, seg, work):
     on the point's horizontal velocity, ∂F_x/∂v_x = −μ·F_y·v_s²/(v_x² + v_s²)^{3/2}
     = −μ·F_y·(1 − ρ²)^{3/2}/v_s with ρ = |F_x|/(μ·F_y), so λ = Σ_c w_x,c·μ·F_y,c·(1 − ρ_c²)^{3/2}
     /v_s,c (the trace of W·D, an upper bound of its largest eigenvalue). On the squat jump
-    the friction's τ, ~8 µs standing on two contacts, is far below the normal force's.
+    the contacts' smallest τ over the run is 13 µs at v_s = 0.01 m/s, far below the normal
+    force's.
 
     Call it right after `joint_accelerations` at the same state: it reads the factorization of
     M, the trigonometry and the contacts' forces and points left in ``work`` and overwrites

@@ -76,7 +76,7 @@ class GroundContact:
         is closer to Coulomb's stick but stiffer, the friction's time constant being about
         m_eff·v_s/(μ·F_y) (m_eff: the point's effective mass horizontally). Measured on the
         squat jump (docs/model.md §9): the toe creeps 3.9 mm during the push-off at 0.1 m/s
-        (0.25 mm at 0.01), and the contacts' time constant standing is 0.13 ms (13 µs at
+        (0.25 mm at 0.01), and the contacts' smallest time constant over it is 0.13 ms (13 µs at
         0.01). Bounds (0, 1].
     """
 
