@@ -31,6 +31,7 @@ _EXPORTS = {
     "Segment": "model", "TorqueGeneratorUnit": "model", "Unit": "model",
     "default_model": "model",
     "Coupling": "solvers", "SimulationResult": "solvers", "simulate": "solvers",
+    "optimise": "optimisation",
 }
 
 
@@ -58,6 +59,7 @@ __all__ = [
     "__version__",
     "default_model",
     "load_model",
+    "optimise",
     "read_table",
     "save_model",
     "save_result",

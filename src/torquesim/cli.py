@@ -1,4 +1,5 @@
-"""Command-line interface: ``torquesim simulate``, ``model``, ``compare`` and ``fit``."""
+"""Command-line interface: ``torquesim simulate``, ``model``, ``compare``, ``fit``,
+``optimise`` and ``batch``."""
 
 from __future__ import annotations
 
@@ -616,6 +617,166 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
     if stop and not outcome.interrupted:
         click.echo("the fit had finished when the stop request came: its outputs are "
                    "complete", err=True)
+    if outcome.interrupted:
+        click.echo(f"interrupted: best so far written; continue with --resume --out {out_dir}",
+                   err=True)
+        return 130
+    return 0
+
+
+@cli.command(short_help="Optimise a performance: activation ramps for a goal.")
+@click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
+              help="Starting model: a TOML file (e.g. a fit's fitted_model.toml) or "
+                   "builtin:elbow-curl|knee-extension|arm-raise|squat-jump. Its activation "
+                   "ramps (3 per unit) are the start of the search.")
+@click.option("--maximise", "--maximize", "maximise", multiple=True, metavar="GOAL",
+              help="A goal to maximise (repeatable): jump_height, com_speed_at_takeoff, "
+                   "peak_speed:JOINT, speed_at:JOINT=ANGLE, time_to:JOINT=ANGLE, "
+                   "final_angle:JOINT, effort; ANGLE in deg unless it ends in rad; W*GOAL "
+                   "weights it (goals are combined in units of their start values).")
+@click.option("--minimise", "--minimize", "minimise", multiple=True, metavar="GOAL",
+              help="A goal to minimise (repeatable), e.g. time_to:elbow=90deg or 0.1*effort.")
+@click.option("--method", type=click.Choice(FIT_METHODS), default="imex", show_default=True,
+              help="Technique of every candidate's run (explicit RK4 ones need a small step; "
+                   "runs beyond its stability limit fail).")
+@click.option("--step", type=TIME, default=None,
+              help="Fixed step (s; ms/us suffixes). Default as for fit: 5 ms on a fixed "
+                   "base, within 0.7 of the contacts' stability limit on a body on the ground "
+                   "(0.25 ms on builtin:squat-jump).")
+@click.option("--duration", type=TIME, default=None,
+              help="Simulate this long instead of the model's duration (s).")
+@click.option("--free", "free", multiple=True, metavar="PATH",
+              help="What may change (repeatable): a unit (elbow_flexor, elbow.flexor), "
+                   "UNIT.rampK or UNIT.rampK.FIELD; everything else is frozen. Default: every "
+                   "unit's ramps.")
+@click.option("--freeze", "frozen", multiple=True, metavar="PATH[=VALUE]",
+              help="Hold a unit, a ramp or a parameter (repeatable) at its start value or at "
+                   "VALUE, e.g. elbow_extensor or elbow_flexor.ramp1.level=0.6.")
+@click.option("--bound", "bounds", multiple=True, metavar="PATH=LOW,HIGH",
+              help="Bounds replacing the window (repeatable; s for delays and durations), "
+                   "e.g. elbow_flexor.ramp1.level=0,1; they must contain the start value.")
+@click.option("--window-delay", type=TIME, default=0.05, show_default=True,
+              help="Every delay may move ± this (s) from the start's.")
+@click.option("--window-duration", type=click.FloatRange(0.0, 0.99), default=0.3,
+              show_default=True, help="Every ramp duration may move ± this fraction.")
+@click.option("--window-level", type=click.FloatRange(0.0, 10.0), default=0.3,
+              show_default=True,
+              help="Every level may move ± this fraction (at least ± 0.05 activation).")
+@click.option("--robust", type=click.IntRange(0, 1000), default=0, show_default=True,
+              help="Score each candidate on its run and this many copies with random onset "
+                   "errors on every ramp (0: the plain optimum).")
+@click.option("--timing-error", type=TIME, default=0.01, show_default=True,
+              help="Largest onset error of the robust copies (s; uniform in ±).")
+@click.option("--robust-mode", type=click.Choice(["worst", "mean"]), default="worst",
+              show_default=True, help="Robust score: the worst or the mean over the copies.")
+@click.option("--generations", type=click.IntRange(1, 100_000), default=60, show_default=True,
+              help="CMA-ES generations.")
+@click.option("--population", type=click.IntRange(4, 10_000), default=None,
+              help="Candidates per generation. Default: 4 + 3·ln(free parameters).")
+@click.option("--sigma", type=click.FloatRange(0.0, 1.0, min_open=True), default=0.2,
+              show_default=True, help="CMA-ES's initial step, as a fraction of each bound.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
+              help="Random seed: the same seed gives the same optimum.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="optimise-out",
+              show_default=True, help="Directory for the optimised model, motion, figure, "
+                                      "page, summary and checkpoint.")
+@click.option("--resume", is_flag=True, help="Continue from OUT/optimise_checkpoint.npz.")
+@click.option("--overwrite", is_flag=True,
+              help="Start again in an --out directory that holds an earlier optimisation.")
+@click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
+def optimise(model_path, maximise, minimise, method, step, duration, free, frozen, bounds,
+             window_delay, window_duration, window_level, robust, timing_error, robust_mode,
+             generations, population, sigma, seed, out_dir, resume, overwrite, quiet):
+    """Optimise the activation ramps of a model for one or more goals.
+
+    Every ramp may move within a window around the starting model's (the optimum stays a
+    technique the performer could use); CMA-ES searches, its population simulated in
+    parallel; start and optimum are re-simulated with the reference solver and compared.
+    Ctrl-C or SIGTERM writes the best so far and a checkpoint; --resume continues.
+    """
+    import signal
+
+    from .io.model_file import load_model
+    from .optimisation import OptimiseProblem, OptimiseSettings, Window, goals_of
+    from .optimisation.outputs import (
+        CHECKPOINT_FILE,
+        OPTIMISE_FILES,
+        optimise_and_write,
+        summary_lines,
+    )
+    from .optimisation.search import load_checkpoint
+
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ModelError("--out", f"{out_dir!r} is a file; allowed: a directory")
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise ModelError("--out", f"directory {str(out.parent)!r} does not exist")
+    if resume and overwrite:
+        raise ModelError("--overwrite", "contradicts --resume; allowed: one of them")
+    if not resume and not overwrite and any((out / f).exists() for f in OPTIMISE_FILES):
+        raise ModelError("--out", f"{out_dir!r} holds an earlier optimisation; allowed: "
+                         "--resume to continue it or --overwrite to replace it")
+    if not maximise and not minimise:
+        raise ModelError("--maximise", "no goal given; allowed: --maximise GOAL or "
+                         "--minimise GOAL, e.g. --minimise time_to:elbow=90deg")
+    model = load_model(model_path)
+    if duration is not None:
+        from .errors import check_range
+
+        model = model.replace(duration=check_range("--duration", duration, 0.0,
+                                                    low_open=True, unit="s"))
+    goals = goals_of(model, maximise, minimise)
+    freeze = {}
+    for text in frozen:
+        name, eq, value = text.partition("=")
+        try:
+            freeze[name.strip()] = float(value) if eq else None
+        except ValueError:
+            raise ModelError("--freeze", f"{text!r}: allowed PATH or PATH=VALUE, e.g. "
+                             "elbow_flexor.ramp1.level=0.6") from None
+    window = Window(delay=window_delay, duration=window_duration, level=window_level)
+    problem = OptimiseProblem(model, goals, method, step, window, tuple(free), freeze,
+                              {k: v for k, v in _parse_assignments(bounds, "--bound",
+                                                                   2).items()},
+                              robust, timing_error, robust_mode)
+    settings = OptimiseSettings(seed=seed, generations=generations, population=population,
+                                sigma=sigma)
+    checkpoint = out / CHECKPOINT_FILE
+    state = None
+    if resume:
+        if not checkpoint.is_file():
+            raise ModelError("--resume", f"no checkpoint {str(checkpoint)!r}; allowed: the "
+                             "--out directory of an earlier optimisation")
+        state = load_checkpoint(checkpoint, problem, settings)
+    created = not out.exists()
+    stop = []
+
+    def request_stop(signum, _frame):
+        stop.append(signum)
+        click.echo("stopping: finishing the current generation, then writing the best so "
+                   "far", err=True)
+
+    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
+                                                                 signal.SIGTERM)}
+    try:
+        reporter = Progress(quiet)
+        reporter.say(f"optimising {len(problem.space.free)} parameters of {model.name} "
+                     f"({problem.method} at {problem.step * 1e3:.4g} ms, "
+                     f"{1 + problem.robust} run(s) per candidate)")
+        outcome, summary, files = optimise_and_write(
+            problem, settings, out, resume=state, progress=reporter.say,
+            tick=lambda done, total: reporter.step(done, total, "generations"),
+            should_stop=lambda: bool(stop))
+        reporter.close()
+    except ModelError:
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    click.echo("\n".join(summary_lines(summary, problem)))
+    click.echo(f"wrote {out_dir}/: {', '.join(files)}, {CHECKPOINT_FILE}")
     if outcome.interrupted:
         click.echo(f"interrupted: best so far written; continue with --resume --out {out_dir}",
                    err=True)

@@ -355,3 +355,84 @@ def save_figure(fig, path, field: str = "plot") -> None:
         write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=120), field)
     finally:
         plt.close(fig)
+
+
+def plot_comparison(start, optimum, *, title: str = "", poses: int = 8):
+    """Start and optimum of an optimisation side by side (``start``, ``optimum``: results of
+    one model's two activation sets): per joint its angle (deg), the net muscle torque and
+    each unit's signed torque (N·m, flexion +) and the units' activations, the optimum solid
+    and the start dashed. A body on the ground adds a row with the vertical ground reaction
+    force (N), the centre-of-mass height (m) and ``poses`` stick figures of each run over
+    time (light to dark)."""
+    model = optimum.model
+    ground = bool(model.contacts)
+    n = model.n_joints
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    rows = n + ground
+    fig, axes = plt.subplots(rows, 3, figsize=(13.5, 2.9 * rows + 0.8), squeeze=False,
+                             constrained_layout=True)
+    runs = (("start", start, (0, (4, 3)), 1.3), ("optimum", optimum, "-", 1.6))
+    columns = {label: run.columns() for label, run, _, _ in runs}
+    for row, joint in enumerate(model.joints):
+        ax_angle, ax_torque, ax_act = axes[row]
+        units = [u for u in model.units if u.joint == joint.name]
+        for label, run, style, width in runs:
+            cols = columns[label]
+            t = cols["time"]
+            ax_angle.plot(t, np.degrees(cols[joint.coordinate]), color="k", ls=style, lw=width,
+                          label=label)
+            ax_torque.plot(t, cols[f"torque_net_{joint.name}"], color="k", ls=style, lw=width,
+                           label=f"net, {label}")
+            for i, u in enumerate(units):
+                ax_torque.plot(t, u.direction * cols[f"torque_{u.name}"], color=f"C{i}",
+                               ls=style, lw=width * 0.8,
+                               label=f"{u.name} ({'+' if u.direction == 1 else '−'}), {label}")
+                ax_act.plot(t, cols[f"activation_{u.name}"], color=f"C{i}", ls=style, lw=width,
+                            label=f"{u.name}, {label}")
+        ax_angle.set_ylabel(f"{joint.coordinate} (deg)")
+        ax_torque.axhline(0.0, color="grey", lw=0.6)
+        ax_torque.set_ylabel(f"{joint.name} torque, flexion + (N·m)")
+        ax_act.set_ylim(0.0, 1.05)
+        ax_act.set_ylabel("activation (0–1)")
+        if not units:
+            ax_act.text(0.5, 0.5, f"no units at {joint.name}", ha="center", va="center",
+                        transform=ax_act.transAxes, color="grey")
+        for ax in (ax_angle, ax_torque, ax_act):
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(loc="best", fontsize="x-small")
+            ax.grid(alpha=0.3)
+            ax.set_xlabel("time (s)")
+    if ground:
+        ax_grf, ax_com, ax_pose = axes[n]
+        for label, run, style, width in runs:
+            cols = columns[label]
+            ax_grf.plot(cols["time"], cols["grf_y"], color="k", ls=style, lw=width, label=label)
+            ax_com.plot(cols["time"], cols["com_y"], color="k", ls=style, lw=width, label=label)
+        ax_grf.set_ylabel("vertical GRF (N)")
+        ax_com.set_ylabel("centre of mass height (m)")
+        for ax in (ax_grf, ax_com):
+            ax.set_xlabel("time (s)")
+            ax.legend(loc="best", fontsize="x-small")
+            ax.grid(alpha=0.3)
+        gap = 0.0
+        for (label, run, _style, _w), color in zip(runs, ("grey", "tab:blue"), strict=True):
+            picks = np.linspace(0, run.time.size - 1, poses).astype(int)
+            lines = segment_lines(model, run.states[picks][:, :model.n_coordinates])
+            for k, frame in enumerate(lines):
+                for seg in frame:
+                    ax_pose.plot(seg[:, 0] + gap, seg[:, 1], color=color,
+                                 alpha=0.25 + 0.75 * k / max(poses - 1, 1), lw=1.5)
+            ax_pose.text(float(lines[..., 0].mean()) + gap, -0.08, label,
+                         ha="center", va="top", color=color)
+            gap += 1.0
+        ax_pose.axhline(0.0, color="k", lw=0.8)
+        ax_pose.set_ylim(bottom=-0.2)
+        ax_pose.set_aspect("equal")
+        ax_pose.set_xlabel("x (m), the optimum drawn 1 m to the right")
+        ax_pose.set_ylabel("y (m)")
+    fig.suptitle(textwrap.fill(title or f"torquesim optimise: {model.name}", 90))
+    return fig

@@ -1,0 +1,90 @@
+"""Optimise a performance: the activation ramps that maximise or minimise goals of the run
+(jump height, time to a position, speed, effort) within a window around a starting model.
+
+>>> import torquesim as ts
+>>> best = ts.optimise("builtin:elbow-curl", minimise="time_to:elbow=90deg")  # doctest: +SKIP
+>>> best.model, best.summary["goals"][0]["reference_gain_percent"]              # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import ModelError
+from .goals import GOALS, Goal, Trial, parse_goal
+from .problem import OptimiseProblem, Window
+from .search import OptimiseOutcome, OptimiseSettings
+
+__all__ = ["GOALS", "Goal", "OptimiseProblem", "OptimiseSettings", "Optimum", "Trial",
+           "Window", "goals_of", "optimise", "parse_goal"]
+
+
+@dataclass
+class Optimum:
+    """What `optimise` returns: the optimised ``model`` (a `ChainModel`), the search's
+    ``outcome`` and the ``summary`` (goals at start and optimum with the reference solver,
+    gains, moved parameters, failures; as ``optimise_summary.json``), and the files written
+    (when ``out`` was given)."""
+
+    model: object
+    outcome: OptimiseOutcome
+    summary: dict
+    files: list
+
+
+def goals_of(model, maximise=(), minimise=()) -> tuple[Goal, ...]:
+    """Goals from their written forms (`parse_goal`), `Goal` objects or functions of a
+    `SimulationResult` (custom goals), to maximise and to minimise."""
+    out = []
+    for sense, items in ((True, maximise), (False, minimise)):
+        if isinstance(items, str | Goal) or callable(items):
+            items = (items,)
+        for item in items:
+            if isinstance(item, Goal):
+                out.append(item)
+            elif isinstance(item, str):
+                out.append(parse_goal(item, model, maximise=sense,
+                                      field="maximise" if sense else "minimise"))
+            elif callable(item):
+                out.append(Goal.custom(item, maximise=sense,
+                                       label=getattr(item, "__name__", "custom")))
+            else:
+                raise ModelError("maximise" if sense else "minimise",
+                                 f"{item!r}; allowed: a goal name, a Goal or a function "
+                                 "of a SimulationResult")
+    return tuple(out)
+
+
+def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: str = "imex",
+             step: float | None = None, window: Window = Window(), free=(),
+             frozen: dict | None = None, bounds: dict | None = None, robust: int = 0,
+             timing_error: float = 0.01, robust_mode: str = "worst",
+             settings: OptimiseSettings = OptimiseSettings(), out: str | Path | None = None,
+             progress: Callable[[str], None] | None = None) -> Optimum:
+    """Optimise ``model``'s activation ramps for the goals (see `torquesim.optimisation`).
+
+    ``model``: a `ChainModel`, a model file or ``builtin:NAME``. ``maximise`` / ``minimise``:
+    a goal or a list (written forms such as ``"time_to:elbow=90deg"``, `Goal` objects, or
+    functions of a `SimulationResult`). ``free``, ``frozen`` (path → value or None for the
+    start's), ``bounds`` (path → (low, high)) and ``window`` say what may move; ``robust``
+    perturbed copies with onset errors in ±``timing_error`` s make the optimum robust. With
+    ``out`` the outputs of ``torquesim optimise`` are written there.
+    """
+    from ..io.model_file import load_model
+    from .outputs import optimise_and_write, summarise
+    from .search import optimise_population
+
+    if isinstance(model, str | Path):
+        model = load_model(str(model))
+    problem = OptimiseProblem(model, goals_of(model, maximise, minimise), method, step,
+                              window, tuple(free), frozen, bounds, robust, timing_error,
+                              robust_mode)
+    if out is not None:
+        outcome, summary, files = optimise_and_write(problem, settings, Path(out),
+                                                     progress=progress)
+    else:
+        outcome = optimise_population(problem, settings, progress=progress)
+        summary, files = summarise(problem, outcome, settings), []
+    return Optimum(summary["_runs"]["optimum"].model, outcome, summary, files)

@@ -1,0 +1,234 @@
+"""What an optimisation writes: the optimised model, start-vs-optimum figure and page, the
+optimum's motion, and a summary. The start and the optimum are re-simulated with the reference
+solver (Radau) and the goals recomputed on those runs, so the gain reported is the model's,
+not the integrator's."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..io.atomic import write_atomic, write_text_atomic
+from ..io.model_file import save_model
+from ..io.provenance import provenance
+from ..io.tables import write_table
+from .goals import Trial
+from .problem import FAILED_COST, OptimiseProblem
+from .search import OptimiseOutcome, OptimiseSettings
+
+MODEL_FILE = "optimised_model.toml"
+MOTION_FILE = "optimum_motion.csv"
+STORAGE_FILE = "optimum_motion.sto"
+FIGURE_FILE = "optimise.png"
+PAGE_FILE = "optimise.html"
+SUMMARY_FILE = "optimise_summary.json"
+CHECKPOINT_FILE = "optimise_checkpoint.npz"
+#: The files an optimisation leaves in its directory.
+OPTIMISE_FILES = (MODEL_FILE, MOTION_FILE, STORAGE_FILE, FIGURE_FILE, PAGE_FILE, SUMMARY_FILE,
+                  CHECKPOINT_FILE)
+#: How many of the parameters that moved most the summary lists.
+MOVED_SHOWN = 8
+
+
+def _gain(goal, start: float, end: float) -> tuple[float, float]:
+    """(improvement in the goal's direction, SI; the same in % of the start)."""
+    change = (end - start) if goal.maximise else (start - end)
+    return change, (100.0 * change / abs(start) if start != 0 else math.nan)
+
+
+def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
+              settings: OptimiseSettings) -> dict:
+    """Re-simulate start and optimum with the reference and collect the figures: per goal
+    its value at start and optimum (the search's technique, the reference, and with copies
+    the robust value), the gain, the parameters that moved most (in % of their bounds), the
+    failed runs by reason."""
+    runs = {}
+    for label, x in (("start", outcome.start_x), ("optimum", outcome.x)):
+        runs[label] = problem.run(x, reference=True)
+    reference = {}
+    for label, run in runs.items():
+        trial = Trial.of(run) if run.success else None
+        reference[label] = [
+            (float(g.function(run)) if g.function is not None
+             else g.value(trial, problem.joint_names)[0]) if trial is not None else math.nan
+            for g in problem.goals]
+    goals, warnings = [], []
+    for k, g in enumerate(problem.goals):
+        gain, percent = _gain(g, outcome.start_values[k], outcome.values[k])
+        ref_gain, ref_percent = _gain(g, reference["start"][k], reference["optimum"][k])
+        entry = {"goal": g.label, "direction": "maximise" if g.maximise else "minimise",
+                 "weight": g.weight, "unit": g.unit,
+                 "start": float(outcome.start_values[k]), "optimum": float(outcome.values[k]),
+                 "gain": gain, "gain_percent": percent,
+                 "reference_start": reference["start"][k],
+                 "reference_optimum": reference["optimum"][k],
+                 "reference_gain": ref_gain, "reference_gain_percent": ref_percent}
+        if problem.robust:
+            entry["robust_start"] = float(outcome.start_robust_values[k])
+            entry["robust_optimum"] = float(outcome.robust_values[k])
+        goals.append(entry)
+        if len(problem.goals) == 1 and gain > 0 and not ref_gain > 0:
+            warnings.append(f"the gain in {g.label} does not hold when the optimum is "
+                            "re-simulated with the reference solver: it leans on the "
+                            "integrator's error; use a smaller --step")
+    if outcome.cost >= FAILED_COST:
+        warnings.append("no candidate was usable")
+    space = problem.space
+    span = np.array(space.upper) - np.array(space.lower)
+    moved = sorted(((abs(outcome.x[i] - outcome.start_x[i]) / span[i], space.names[i])
+                    for i in space.free), reverse=True)[:MOVED_SHOWN]
+    return {
+        **provenance(),
+        "model": problem.start_model.name,
+        "goals": goals,
+        "cost": {"start": outcome.start_cost, "optimum": outcome.cost},
+        "method": problem.method, "step_s": problem.step,
+        "robust": ({"copies": problem.robust, "timing_error_s": problem.timing_error,
+                    "mode": problem.robust_mode, "seed": problem.perturbation_seed}
+                   if problem.robust else None),
+        "window": {"delay_s": problem.window.delay, "duration_fraction": problem.window.duration,
+                   "level_fraction": problem.window.level,
+                   "min_level": problem.window.min_level},
+        "free_parameters": int(space.free.size),
+        "moved_most": [{"parameter": name, "start": float(outcome.start_x[space.names.index(name)]),
+                        "optimum": float(outcome.x[space.names.index(name)]),
+                        "moved_percent_of_bounds": float(100 * f)} for f, name in moved],
+        "parameters": space.table(outcome.x),
+        "search": {"method": "CMA-ES (cmaes)", "seed": settings.seed,
+                   "population": outcome.population, "sigma": settings.sigma,
+                   "generations": outcome.generations_done,
+                   "generations_asked": settings.generations, "converged": outcome.converged,
+                   "interrupted": outcome.interrupted},
+        "simulations": outcome.simulations,
+        "failed_simulations": dict(outcome.failures),
+        "wall_time_s": outcome.wall_time,
+        "simulations_per_second": outcome.simulations / max(outcome.wall_time, 1e-9),
+        "history": outcome.history,
+        "warnings": warnings,
+        "_runs": runs,
+    }
+
+
+def _value_text(goal, value) -> str:
+    return goal.shown(value) if isinstance(value, float) else "—"
+
+
+def summary_lines(summary: dict, problem: OptimiseProblem) -> list[str]:
+    """The printed summary."""
+    lines = [f"model         {summary['model']}; {summary['free_parameters']} free parameters; "
+             f"{summary['method']} at {summary['step_s'] * 1e3:.4g} ms"]
+    for goal, e in zip(problem.goals, summary["goals"], strict=True):
+        lines.append(f"{e['direction']} {e['goal']}: start {goal.shown(e['start'])} → optimum "
+                     f"{goal.shown(e['optimum'])} (gain {e['gain_percent']:+.2f} %)")
+        lines.append(f"  reference   start {goal.shown(e['reference_start'])} → optimum "
+                     f"{goal.shown(e['reference_optimum'])} (gain "
+                     f"{e['reference_gain_percent']:+.2f} %), both re-simulated with Radau")
+        if "robust_optimum" in e:
+            r = summary["robust"]
+            lines.append(f"  robust      {r['mode']} of the run and {r['copies']} copies with "
+                         f"±{r['timing_error_s'] * 1e3:g} ms onset errors: start "
+                         f"{goal.shown(e['robust_start'])} → optimum "
+                         f"{goal.shown(e['robust_optimum'])}")
+    lines.append("moved most    " + "; ".join(
+        f"{m['parameter']} {m['start']:.4g} → {m['optimum']:.4g}"
+        for m in summary["moved_most"][:4]))
+    search = summary["search"]
+    failed = sum(summary["failed_simulations"].values())
+    lines.append(f"search        CMA-ES, seed {search['seed']}, {search['generations']} "
+                 f"generations of {search['population']}"
+                 + (" (converged)" if search["converged"] else ""))
+    lines.append(f"simulations   {summary['simulations']} ({failed} failed"
+                 + (": " + ", ".join(f"{n} {why}" for why, n in
+                                     sorted(summary["failed_simulations"].items(),
+                                            key=lambda kv: -kv[1])) if failed else "")
+                 + f"), {summary['simulations_per_second']:.0f} per second")
+    lines.append(f"wall time     {summary['wall_time_s']:.1f} s")
+    return lines + [f"warning: {w}" for w in summary["warnings"]]
+
+
+def optimise_notes(summary: dict) -> list[str]:
+    """What the optimised model file says of the optimisation that made it."""
+    goals = "; ".join(f"{e['direction']} {e['goal']}: {e['reference_start']:.6g} → "
+                      f"{e['reference_optimum']:.6g} {e['unit']} ({e['reference_gain_percent']:+.2f}"
+                      " %, reference solver)" for e in summary["goals"])
+    robust = summary["robust"]
+    extra = (f", robust ({robust['mode']} of {robust['copies']} copies with "
+             f"±{robust['timing_error_s'] * 1e3:g} ms onset errors)" if robust else "")
+    return [f"Activation ramps optimised by torquesim {summary['torquesim_version']} on "
+            f"{summary['created']} from {summary['model']}: {goals}.",
+            f"Optimise settings: {summary['method']} at {summary['step_s'] * 1e3:.4g} ms, "
+            f"CMA-ES seed {summary['search']['seed']}, {summary['search']['generations']} "
+            f"generations, {summary['simulations']} simulations{extra}; window ±"
+            f"{summary['window']['delay_s'] * 1e3:g} ms on delays, ±"
+            f"{summary['window']['duration_fraction']:.0%} on durations, ±"
+            f"{summary['window']['level_fraction']:.0%} on levels; the notes below are the "
+            "starting model's."]
+
+
+def write_outputs(out_dir, problem: OptimiseProblem, outcome: OptimiseOutcome,
+                  summary: dict) -> list[str]:
+    """Write model TOML, the optimum's motion (CSV and OpenSim storage, reference solver),
+    the comparison figure, an HTML page and the summary JSON (each atomically)."""
+    from ..io import html_page
+    from ..plots import figure_png, plot_comparison
+
+    out = Path(out_dir)
+    runs = summary["_runs"]
+    optimum = runs["optimum"]
+    save_model(optimum.model.replace(notes=(*optimise_notes(summary),
+                                            *problem.start_model.notes)),
+               out / MODEL_FILE, "--out")
+    write_table(out / MOTION_FILE, optimum.columns())
+    write_table(out / STORAGE_FILE, optimum.columns(), name="torquesim optimum")
+    heads = "; ".join(f"{e['goal']} {_value_text(g, e['reference_start'])} → "
+                      f"{_value_text(g, e['reference_optimum'])}"
+                      for g, e in zip(problem.goals, summary["goals"], strict=True))
+    title = f"torquesim optimise {summary['model']}: {heads} (reference solver)"
+    png = figure_png(plot_comparison(runs["start"], optimum, title=title), dpi=120)
+    write_atomic(out / FIGURE_FILE, lambda tmp: tmp.write_bytes(png), "--out")
+    rows = [[e["goal"], e["direction"], _value_text(g, e["reference_start"]),
+             _value_text(g, e["reference_optimum"]), f"{e['reference_gain_percent']:+.2f} %"]
+            for g, e in zip(problem.goals, summary["goals"], strict=True)]
+    moved = [[m["parameter"], m["start"], m["optimum"], m["moved_percent_of_bounds"]]
+             for m in summary["moved_most"]]
+    body = [html_page.table(["goal", "direction", "start", "optimum", "gain"], rows),
+            "<h2>Parameters that moved most</h2>",
+            html_page.table(["parameter", "start", "optimum", "moved (% of bounds)"], moved),
+            "<h2>Start (dashed) and optimum (solid)</h2>", html_page.image(png, title),
+            "<h2>Settings</h2>", html_page.settings_table({
+                "method": summary["method"], "step (ms)": summary["step_s"] * 1e3,
+                "seed": summary["search"]["seed"],
+                "generations": summary["search"]["generations"],
+                "population": summary["search"]["population"],
+                "simulations": summary["simulations"],
+                "failed": sum(summary["failed_simulations"].values()),
+                "robust copies": problem.robust})]
+    write_text_atomic(out / PAGE_FILE, html_page.page(title, body))
+    public = {k: v for k, v in summary.items() if not k.startswith("_")}
+    write_text_atomic(out / SUMMARY_FILE, json.dumps(public, indent=2, default=float) + "\n")
+    return [MODEL_FILE, MOTION_FILE, STORAGE_FILE, FIGURE_FILE, PAGE_FILE, SUMMARY_FILE]
+
+
+def optimise_and_write(problem: OptimiseProblem, settings: OptimiseSettings, out: Path, *,
+                       resume: dict | None = None, progress=None, tick=None,
+                       should_stop=lambda: False, evaluate=None
+                       ) -> tuple[OptimiseOutcome, dict, list[str]]:
+    """The whole optimisation into the folder ``out`` (created if needed) under its lock:
+    the search with its checkpoint, then the summary and every output file."""
+    from ..io.lock import take_lock
+    from .search import optimise_population
+
+    out.mkdir(parents=True, exist_ok=True)
+    lock = take_lock(out)
+    try:
+        outcome = optimise_population(problem, settings, checkpoint=out / CHECKPOINT_FILE,
+                                      resume=resume, progress=progress, tick=tick,
+                                      should_stop=should_stop, evaluate=evaluate)
+        summary = summarise(problem, outcome, settings)
+        files = write_outputs(out, problem, outcome, summary)
+    finally:
+        lock.unlink(missing_ok=True)
+    return outcome, summary, files

@@ -1,0 +1,63 @@
+"""A population of candidate activation profiles simulated together, in compiled parallel
+threads: the motion of every candidate at every step, for goals computed afterwards."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from ..fitting.objective import PROFILE_SIZE, pack_profile
+from ..fitting.parameters import PER_UNIT
+from ..model.activation import activation
+from ..model.body import body_work_size, ground_outputs
+from ..solvers import fixed_step as fs
+
+#: Outcome codes of a candidate's run (`simulate_population`).
+RUN_OK, RUN_NON_FINITE, RUN_DIVERGED, RUN_UNSTABLE_MUSCLE, RUN_UNSTABLE_CONTACT = range(5)
+RUN_REASONS = ("", "non-finite state", "diverged", "step beyond explicit RK4's stability "
+               "limit in a unit", "step beyond RK4's stability limit in a ground contact")
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def simulate_population(population, loop, coupling, y0, step, n_steps, seg, joints, units,
+                        levels, explicit_muscles, ground, states, activations, outputs,
+                        status):
+    """Simulate every row of ``population`` (m × 9U ramp vectors, `fitting.parameters`) with
+    the step loop the switches ``loop`` choose (`fixed_step.step_loop_switches`), unit u
+    starting at ``levels[u]``. Fills, per candidate j: ``states[j]`` (steps + 1 rows of y),
+    ``activations[j]`` (units × steps + 1, the profiles' values), with ``ground`` the
+    `GROUND_OUTPUTS` of a body on the ground at every step into ``outputs[j]`` (4 × steps + 1),
+    and ``status[j]`` (RUN_* codes: the first of non-finite, diverged, a unit beyond the RK4
+    limit when ``explicit_muscles``, a contact beyond it)."""
+    n = joints.shape[0]
+    for j in prange(population.shape[0]):
+        seg_j, joints_j, units_j = seg.copy(), joints.copy(), units.copy()
+        y0_j, coupling_j = y0.copy(), coupling.copy()
+        profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
+        for u in range(levels.shape[0]):
+            pack_profile(population[j], u * PER_UNIT, levels[u], profiles[u])
+        stats = np.zeros(fs.STATS_SIZE)
+        fs.run_step_loop(*loop, y0_j, step, n_steps, seg_j, joints_j, units_j, profiles,
+                         coupling_j, states[j], stats)
+        for u in range(levels.shape[0]):
+            for k in range(n_steps + 1):
+                activations[j, u, k] = activation(k * step, profiles[u])
+        if stats[fs.STATUS] == fs.NON_FINITE:
+            status[j] = RUN_NON_FINITE
+        elif stats[fs.STATUS] != fs.OK:
+            status[j] = RUN_DIVERGED
+        elif explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
+            status[j] = RUN_UNSTABLE_MUSCLE
+        elif stats[fs.CONTACT_RATIO] > fs.RK4_STABILITY_LIMIT:
+            status[j] = RUN_UNSTABLE_CONTACT
+        else:
+            status[j] = RUN_OK
+        if ground and status[j] == RUN_OK:
+            flat = joints_j.ravel()
+            work = np.zeros(body_work_size(n, seg_j))
+            torque = np.zeros(n)
+            values = np.empty(4)
+            for k in range(n_steps + 1):
+                ground_outputs(states[j, k], n, seg_j, flat, torque, work, values)
+                for c in range(4):
+                    outputs[j, c, k] = values[c]

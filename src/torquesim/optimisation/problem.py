@@ -1,0 +1,423 @@
+"""An optimisation problem: the starting model, the goals, what may change, and the score.
+
+The activation of every unit is written as 3 ramps (`torquesim.fitting.parameters`: 9
+parameters per unit); a unit with fewer ramps gets ramps that hold its last level (the
+profile is unchanged). By default every parameter may move within a window around the
+starting model's value (`Window`), so that the optimum stays a technique the performer could
+use; ``free`` picks what may move (everything else is frozen), ``frozen`` and ``bounds``
+refine it, in the one parameter-path vocabulary (``UNIT``, ``UNIT.rampK``,
+``UNIT.rampK.FIELD``; units by name or alias).
+
+A candidate is simulated with the problem's technique and step (compiled, in parallel
+threads, `torquesim.optimisation.population`); it fails, with the reason counted, when its run
+is non-finite, diverges, breaks the RK4 stability limit (contacts always, units with explicit
+techniques), takes a joint more than `RANGE_MARGIN` end-stop scales beyond its end stops, or
+leaves a goal undefined. Its cost is the goals' combination (`torquesim.optimisation.goals`); a
+robust problem scores the worst (or mean) cost over the nominal run and ``robust`` copies
+with every ramp's onset moved by a random error in ±``timing_error`` (the same copies for
+every candidate, from ``perturbation_seed``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import ModelError, check_range
+from ..fitting.parameters import (
+    HARD_LIMITS,
+    PER_UNIT,
+    RAMP_FIELDS,
+    RAMPS_PER_UNIT,
+    ParameterSpace,
+    vector,
+    with_ramps,
+)
+from ..fitting.problem import default_step, fit_step
+from ..model.activation import ActivationProfile, Ramp
+from ..model.body import GROUND_OUTPUTS
+from ..model.chain import ChainModel, as_chain
+from ..solvers import fixed_step as fs
+from ..solvers.coupling import IMEX, Coupling
+from ..solvers.techniques import FIT_METHODS
+from . import population as pop
+from .goals import Goal, Trial
+
+#: A run fails when a joint goes more than this many end-stop angle scales s_p beyond an end
+#: stop (joints with end stops only).
+RANGE_MARGIN = 2.0
+#: Cost of a failed candidate (costs of usable ones are O(1): goals in units of the start's).
+FAILED_COST = 1.0e6
+#: Candidates simulated per compiled call (bounds the memory of the stored motions).
+CHUNK = 64
+ROBUST_MODES = ("worst", "mean")
+#: Duration of the ramps added to a unit with fewer than 3 (they hold its level), s.
+HOLD_RAMP_DURATION = 0.1
+
+
+@dataclass(frozen=True)
+class Window:
+    """How far each kind of ramp parameter may move from the starting model's value.
+
+    Attributes
+    ----------
+    delay : float
+        ± s on every delay. Default 0.05. Bounds [0, 10].
+    duration : float
+        ± fraction of every duration. Default 0.3. Bounds [0, 0.99].
+    level : float
+        ± fraction of every level, at least ±`min_level`. Default 0.3. Bounds [0, 10].
+    min_level : float
+        Smallest ± window of a level (activation), so that a unit at rest may act.
+        Default 0.05. Bounds [0, 1].
+    """
+
+    delay: float = 0.05
+    duration: float = 0.3
+    level: float = 0.3
+    min_level: float = 0.05
+
+    def __post_init__(self) -> None:
+        check_range("window.delay", self.delay, 0.0, 10.0, unit="s")
+        check_range("window.duration", self.duration, 0.0, 0.99)
+        check_range("window.level", self.level, 0.0, 10.0)
+        check_range("window.min_level", self.min_level, 0.0, 1.0)
+
+    def around(self, name: str, value: float) -> tuple[float, float]:
+        """(low, high) of parameter ``name`` (``….FIELD``) starting at ``value``, inside its
+        physical limits."""
+        kind = name.rsplit(".", 1)[1]
+        if kind == "delay":
+            low, high = value - self.delay, value + self.delay
+        elif kind == "duration":
+            low, high = value * (1 - self.duration), value * (1 + self.duration)
+        else:
+            half = max(self.level * value, self.min_level)
+            low, high = value - half, value + half
+        hard_low, hard_high = HARD_LIMITS[kind]
+        return max(low, hard_low), min(high, hard_high)
+
+
+def three_ramps(model: ChainModel) -> ChainModel:
+    """``model`` with every unit's activation as exactly 3 ramps: ramps holding the last
+    level (delay 0, `HOLD_RAMP_DURATION`) are appended to a unit with fewer; the activation
+    is unchanged. A unit with more than 3 is a `ModelError`."""
+    levels = model.initial_state().levels
+    units = []
+    for u, unit in enumerate(model.units):
+        ramps = unit.activation.ramps
+        if len(ramps) > RAMPS_PER_UNIT:
+            raise ModelError(f"units[{u}].activation.ramps", f"{unit.name} has {len(ramps)} "
+                             f"ramps; allowed: at most {RAMPS_PER_UNIT} (the optimised "
+                             "parameters are 3 ramps per unit)")
+        last = ramps[-1].level if ramps else float(levels[u])
+        held = tuple(Ramp(0.0, HOLD_RAMP_DURATION, last)
+                     for _ in range(RAMPS_PER_UNIT - len(ramps)))
+        units.append(replace(unit, activation=ActivationProfile(
+            unit.activation.initial_level, tuple(ramps) + held)))
+    return model.replace(units=tuple(units))
+
+
+def _parameters_of(space: ParameterSpace, path: str) -> list[str]:
+    """The parameter names ``path`` selects: a unit, ``UNIT.rampK`` or one parameter."""
+    unit = space.aliases.get(path, path)
+    if unit in space.units:
+        return [n for n in space.names if n.startswith(unit + ".ramp")]
+    head, dot, ramp = path.rpartition(".")
+    if dot and ramp.startswith("ramp") and ramp[4:].isdigit():
+        return [space.resolve(f"{path}.{f}", "free") for f in RAMP_FIELDS]
+    return [space.resolve(path, "free")]
+
+
+def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=None,
+                    bounds=None) -> ParameterSpace:
+    """The searched space around the parameter vector ``start`` of the 3-ramp ``model``
+    (module docstring). ``frozen``: path → value (None: the start's); ``bounds``: path →
+    (low, high), replacing the window; each must contain the start's value."""
+    space = ParameterSpace.for_model(model)
+    names = space.names
+    lower, upper = zip(*(window.around(n, float(v)) for n, v in zip(names, start,
+                                                                     strict=True)),
+                       strict=True)
+    lower, upper = list(lower), list(upper)
+    for path, (low, high) in (bounds or {}).items():
+        for name in _parameters_of(space, path):
+            i = names.index(name)
+            if not low <= start[i] <= high:
+                raise ModelError(f"bound.{path}", f"[{low:g}, {high:g}] excludes the starting "
+                                 f"model's {name} = {start[i]:g}; allowed: bounds that "
+                                 "contain it")
+            lower[i], upper[i] = low, high
+    # A parameter whose window is a point (e.g. a delay of 0 with window 0) is frozen there.
+    pinned = {n: float(start[i]) for i, n in enumerate(names) if lower[i] >= upper[i]}
+    for i, n in enumerate(names):
+        if n in pinned:
+            lower[i], upper[i] = HARD_LIMITS[n.rsplit(".", 1)[1]]
+    chosen = set(names)
+    if free:
+        chosen = {n for path in free for n in _parameters_of(space, path)}
+    held = {n: float(start[i]) for i, n in enumerate(names) if n not in chosen}
+    for path, value in (frozen or {}).items():
+        for name in _parameters_of(space, path):
+            held[name] = float(start[names.index(name)]) if value is None else float(value)
+    space = ParameterSpace(units=space.units, lower=tuple(lower), upper=tuple(upper),
+                           frozen={**pinned, **held}, aliases=space.aliases)
+    if space.free.size == 0:
+        raise ModelError("free", "every parameter is frozen; allowed: at least one free")
+    return space
+
+
+def apply_timing_errors(x, errors) -> np.ndarray:
+    """The ramp vector ``x`` with every ramp's onset moved by ``errors`` (units × 3, s):
+    delay_i + e_i − e_{i−1}, floored at 0 (a ramp cannot start before the previous ends)."""
+    out = np.array(x, dtype=float)
+    for u in range(errors.shape[0]):
+        previous = 0.0
+        for i in range(RAMPS_PER_UNIT):
+            k = u * PER_UNIT + 3 * i
+            out[k] = max(out[k] + errors[u, i] - previous, 0.0)
+            previous = errors[u, i]
+    return out
+
+
+@dataclass
+class OptimiseProblem:
+    """Everything a candidate's score needs, with the model's arrays packed once.
+
+    Attributes
+    ----------
+    model : ChainModel
+        The starting model (its activations: the start of the search).
+    goals : tuple of Goal
+    method : str
+        Technique of the candidates' runs: ``imex`` (default), ``monolithic``, ``partitioned``.
+    step : float or None
+        s; default as a fit's (`torquesim.fitting.problem.default_step`: 5 ms on a fixed base,
+        within 0.7 of the contacts' RK4 limit on a body on the ground).
+    window : Window
+    free, frozen, bounds
+        What may move (module docstring).
+    robust : int
+        Perturbed copies per candidate (0: the plain optimum). Bounds [0, 1000].
+    timing_error : float
+        Largest onset error of the copies, s. Default 0.01. Bounds [0, 1].
+    robust_mode : str
+        ``worst`` (default: the score is never better than the nominal run's) or ``mean``.
+    perturbation_seed : int
+        Seed of the copies' errors. Default 1.
+    """
+
+    model: object = None
+    goals: tuple = ()
+    method: str = "imex"
+    step: float | None = None
+    window: Window = field(default_factory=Window)
+    free: tuple = ()
+    frozen: dict | None = None
+    bounds: dict | None = None
+    robust: int = 0
+    timing_error: float = 0.01
+    robust_mode: str = "worst"
+    perturbation_seed: int = 1
+    simulations: int = 0
+    failures: Counter = field(default_factory=Counter)
+
+    def __post_init__(self) -> None:
+        from ..model.presets import preset
+
+        if self.method not in FIT_METHODS:
+            raise ModelError("method", f"{self.method!r}; allowed: {', '.join(FIT_METHODS)}")
+        if not self.goals:
+            raise ModelError("goal", "none given; allowed: at least one --maximise or "
+                             "--minimise GOAL")
+        self.goals = tuple(self.goals)
+        if not all(isinstance(g, Goal) for g in self.goals):
+            raise TypeError("goals: expected Goal objects (parse_goal or Goal.custom)")
+        check_range("robust", self.robust, 0, 1000)
+        check_range("timing_error", self.timing_error, 0.0, 1.0, unit="s")
+        if self.robust_mode not in ROBUST_MODES:
+            raise ModelError("robust_mode", f"{self.robust_mode!r}; allowed: "
+                             f"{', '.join(ROBUST_MODES)}")
+        start = as_chain(self.model if self.model is not None
+                         else preset("builtin:elbow-curl"))
+        if not isinstance(start, ChainModel):
+            raise TypeError("model: expected a model")
+        self.start_model = start
+        self.model3 = three_ramps(start)
+        self.x0 = vector([u.activation for u in self.model3.units])
+        self.space = parameter_space(self.model3, self.x0, self.window, self.free,
+                                     self.frozen, self.bounds)
+        if self.step is None:
+            self.step = default_step(start)
+        self.step, self.n_steps = fit_step(start.duration, self.step)
+        begin = self.model3.initial_state()
+        self.y0 = begin.state
+        self.levels = np.array(begin.levels, dtype=float)
+        self.initial_levels = [None] * len(start.units)  # the model's own
+        self.coupling = {"imex": IMEX, "partitioned": Coupling(),
+                         "monolithic": Coupling()}[self.method]
+        packed = self.model3.pack(self.levels)
+        self.arrays = (packed.segments, packed.joints, packed.units)
+        self.step_loop = fs.step_loop_switches(self.method == "monolithic",
+                                               start.n_coordinates, self.coupling.to_array(),
+                                               start.has_activation_dynamics,
+                                               start.base == "free", not start.is_serial)
+        self.ground = bool(start.contacts) and start.base == "free"
+        self.joint_names = tuple(j.name for j in start.joints)
+        rng = np.random.default_rng(self.perturbation_seed)
+        self.timing_errors = rng.uniform(-self.timing_error, self.timing_error,
+                                         (self.robust, len(start.units), RAMPS_PER_UNIT))
+        self.scales = np.ones(len(self.goals))
+        values, reasons = self.goal_values(self.x0[None, :])
+        if reasons[0]:
+            raise ModelError("model", f"the starting model's run fails ({reasons[0]}) at "
+                             f"step {self.step * 1e3:.4g} ms with {self.method}; allowed: a "
+                             "start whose run is usable (another --step or --method, or a "
+                             "goal it reaches)")
+        self.start_values = values[0]
+        self.scales = np.array([abs(v) if v != 0 else 1.0 for v in self.start_values])
+        self.simulations = 0
+        self.failures = Counter()
+
+    # ---- simulating --------------------------------------------------------------------
+    @property
+    def explicit_muscles(self) -> bool:
+        return self.method != "imex"
+
+    def model_for(self, x) -> ChainModel:
+        """The model with the activation ramps of the full parameter vector ``x``."""
+        return with_ramps(self.model3, x, self.initial_levels)
+
+    def trials(self, population) -> list[tuple[Trial | None, str]]:
+        """(trial, "") or (None, why it failed) of every row of ``population`` (full
+        parameter vectors), simulated in compiled parallel threads, `CHUNK` at a time."""
+        population = np.ascontiguousarray(np.atleast_2d(population), dtype=float)
+        out: list[tuple[Trial | None, str]] = []
+        for begin in range(0, population.shape[0], CHUNK):
+            out += self._chunk(population[begin:begin + CHUNK])
+        self.simulations += population.shape[0]
+        return out
+
+    def _chunk(self, rows) -> list[tuple[Trial | None, str]]:
+        m, steps = rows.shape[0], self.n_steps + 1
+        states = np.empty((m, steps, self.y0.size))
+        activations = np.empty((m, self.levels.size, steps))
+        outputs = np.zeros((m, len(GROUND_OUTPUTS), steps if self.ground else 1))
+        status = np.zeros(m, dtype=np.int64)
+        seg, joints, units = self.arrays
+        pop.simulate_population(rows, self.step_loop, self.coupling.to_array(), self.y0,
+                                self.step, self.n_steps, seg, joints, units, self.levels,
+                                self.explicit_muscles, self.ground, states, activations,
+                                outputs, status)
+        model = self.start_model
+        n, nb = model.n_coordinates, model.n_base
+        time = np.arange(steps) * self.step
+        result = []
+        for j in range(m):
+            if status[j] != pop.RUN_OK:
+                result.append((None, pop.RUN_REASONS[status[j]]))
+                continue
+            angles = states[j, :, nb:n]
+            why = self._outside_range(angles)
+            if why:
+                result.append((None, why))
+                continue
+            ground = {}
+            if self.ground:
+                com_x, com_y = outputs[j, 2], outputs[j, 3]
+                ground = {"com_y": com_y, "grf_y": outputs[j, 1],
+                          "com_speed_x": np.gradient(com_x, self.step),
+                          "com_speed_y": np.gradient(com_y, self.step)}
+            result.append((Trial(time, angles, states[j, :, n + nb:2 * n],
+                                 activations[j].T, gravity=model.gravity, **ground), ""))
+        return result
+
+    def _outside_range(self, angles) -> str:
+        for k, joint in enumerate(self.start_model.joints):
+            if joint.endstop_torque <= 0:
+                continue
+            margin = RANGE_MARGIN * joint.endstop_angle_scale
+            low, high = joint.endstop_lower_angle - margin, joint.endstop_upper_angle + margin
+            if angles[:, k].min() < low or angles[:, k].max() > high:
+                return (f"{joint.name} left its range ({math.degrees(joint.endstop_lower_angle):.0f}"
+                        f" to {math.degrees(joint.endstop_upper_angle):.0f} deg)")
+        return ""
+
+    # ---- scoring -----------------------------------------------------------------------
+    def goal_values(self, population) -> tuple[np.ndarray, list[str]]:
+        """Each goal's value (columns) on the nominal run of every row of ``population``
+        (full vectors), NaN where the run failed, and the reasons ("" when usable)."""
+        population = np.atleast_2d(population)
+        values = np.full((len(population), len(self.goals)), np.nan)
+        reasons = []
+        for r, (trial, why) in enumerate(self.trials(population)):
+            if trial is not None:
+                why = self._fill(values[r], trial, population[r])
+            reasons.append(why)
+            if why:
+                self.failures[why] += 1
+        return values, reasons
+
+    def _fill(self, row, trial, x) -> str:
+        for g, goal in enumerate(self.goals):
+            if goal.function is not None:
+                value, why = float(goal.function(self.run(x))), ""
+            else:
+                value, why = goal.value(trial, self.joint_names)
+            if why or not math.isfinite(value):
+                return why or f"{goal.label} is undefined (NaN) on this run"
+            row[g] = value
+        return ""
+
+    def run(self, x, reference: bool = False):
+        """The `SimulationResult` of the full parameter vector ``x``: with the problem's
+        technique and step, or the reference solver at that output step."""
+        from ..solvers.simulation import simulate
+
+        model = self.model_for(x)
+        if reference:
+            return simulate(model, "reference", output_step=self.step, check=False)
+        return simulate(model, self.method, self.step, coupling=self.coupling, check=False,
+                        advise=False, tolerance=None)
+
+    def cost_of_values(self, values) -> np.ndarray:
+        """C = Σ_g w_g·σ_g·v_g/scale_g of rows of goal values (`FAILED_COST` for NaN)."""
+        signs = np.array([-g.weight if g.maximise else g.weight for g in self.goals])
+        cost = (np.asarray(values) / self.scales) @ signs
+        return np.where(np.isfinite(cost), cost, FAILED_COST)
+
+    def expand(self, population) -> np.ndarray:
+        """Every row of ``population`` (full vectors) followed by its `robust` perturbed
+        copies: (m·(1 + robust)) rows."""
+        rows = []
+        for x in np.atleast_2d(population):
+            rows.append(x)
+            rows += [apply_timing_errors(x, e) for e in self.timing_errors]
+        return np.array(rows)
+
+    def score(self, population) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(costs, nominal goal values, robust goal values) of the rows of ``population``
+        (full vectors). Without copies the robust values are the nominal ones; with them,
+        per goal the worst (or mean) over the nominal run and the copies, and the cost the
+        worst (or mean) of the copies' costs. A candidate with any failed run costs
+        `FAILED_COST`."""
+        population = np.atleast_2d(population)
+        copies = 1 + self.robust
+        values, _ = self.goal_values(self.expand(population))
+        values = values.reshape(len(population), copies, len(self.goals))
+        costs = self.cost_of_values(values.reshape(-1, len(self.goals))).reshape(
+            len(population), copies)
+        failed = ~np.isfinite(values).all(axis=(1, 2))
+        if self.robust_mode == "worst":
+            cost = costs.max(axis=1)
+            robust = np.column_stack([values[:, :, g].min(axis=1) if goal.maximise
+                                      else values[:, :, g].max(axis=1)
+                                      for g, goal in enumerate(self.goals)])
+        else:
+            cost = costs.mean(axis=1)
+            robust = values.mean(axis=1)
+        cost = np.where(failed, FAILED_COST, cost)
+        return cost, values[:, 0], robust
