@@ -380,7 +380,7 @@ def plot_comparison(start, optimum, *, title: str = "", poses: int = 8):
     for row, joint in enumerate(model.joints):
         ax_angle, ax_torque, ax_act = axes[row]
         units = [u for u in model.units if u.joint == joint.name]
-        for label, run, style, width in runs:
+        for label, _run, style, width in runs:
             cols = columns[label]
             t = cols["time"]
             ax_angle.plot(t, np.degrees(cols[joint.coordinate]), color="k", ls=style, lw=width,
@@ -408,7 +408,7 @@ def plot_comparison(start, optimum, *, title: str = "", poses: int = 8):
             ax.set_xlabel("time (s)")
     if ground:
         ax_grf, ax_com, ax_pose = axes[n]
-        for label, run, style, width in runs:
+        for label, _run, style, width in runs:
             cols = columns[label]
             ax_grf.plot(cols["time"], cols["grf_y"], color="k", ls=style, lw=width, label=label)
             ax_com.plot(cols["time"], cols["com_y"], color="k", ls=style, lw=width, label=label)

@@ -58,10 +58,10 @@ def goals_of(model, maximise=(), minimise=()) -> tuple[Goal, ...]:
 
 
 def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: str = "imex",
-             step: float | None = None, window: Window = Window(), free=(),
+             step: float | None = None, window: Window | None = None, free=(),
              frozen: dict | None = None, bounds: dict | None = None, robust: int = 0,
              timing_error: float = 0.01, robust_mode: str = "worst",
-             settings: OptimiseSettings = OptimiseSettings(), out: str | Path | None = None,
+             settings: OptimiseSettings | None = None, out: str | Path | None = None,
              progress: Callable[[str], None] | None = None) -> Optimum:
     """Optimise ``model``'s activation ramps for the goals (see `torquesim.optimisation`).
 
@@ -76,6 +76,8 @@ def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: st
     from .outputs import optimise_and_write, summarise
     from .search import optimise_population
 
+    window = window or Window()
+    settings = settings or OptimiseSettings()
     if isinstance(model, str | Path):
         model = load_model(str(model))
     problem = OptimiseProblem(model, goals_of(model, maximise, minimise), method, step,

@@ -152,8 +152,9 @@ def summary_lines(summary: dict, problem: OptimiseProblem) -> list[str]:
 def optimise_notes(summary: dict) -> list[str]:
     """What the optimised model file says of the optimisation that made it."""
     goals = "; ".join(f"{e['direction']} {e['goal']}: {e['reference_start']:.6g} → "
-                      f"{e['reference_optimum']:.6g} {e['unit']} ({e['reference_gain_percent']:+.2f}"
-                      " %, reference solver)" for e in summary["goals"])
+                      f"{e['reference_optimum']:.6g} {e['unit']} (gain "
+                      f"{e['reference_gain_percent']:+.2f} %, reference solver)"
+                      for e in summary["goals"])
     robust = summary["robust"]
     extra = (f", robust ({robust['mode']} of {robust['copies']} copies with "
              f"±{robust['timing_error_s'] * 1e3:g} ms onset errors)" if robust else "")

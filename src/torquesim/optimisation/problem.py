@@ -342,8 +342,9 @@ class OptimiseProblem:
             margin = RANGE_MARGIN * joint.endstop_angle_scale
             low, high = joint.endstop_lower_angle - margin, joint.endstop_upper_angle + margin
             if angles[:, k].min() < low or angles[:, k].max() > high:
-                return (f"{joint.name} left its range ({math.degrees(joint.endstop_lower_angle):.0f}"
-                        f" to {math.degrees(joint.endstop_upper_angle):.0f} deg)")
+                low, high = (math.degrees(a) for a in (joint.endstop_lower_angle,
+                                                        joint.endstop_upper_angle))
+                return f"{joint.name} left its range ({low:.0f} to {high:.0f} deg)"
         return ""
 
     # ---- scoring -----------------------------------------------------------------------
