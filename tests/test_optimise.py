@@ -1,0 +1,294 @@
+"""Optimising a performance: goals, the searched space, robust copies, resume, the command."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import torquesim as ts
+from torquesim.cli import main
+from torquesim.errors import ModelError
+from torquesim.model.presets import preset
+from torquesim.optimisation import (
+    OptimiseProblem,
+    OptimiseSettings,
+    Trial,
+    Window,
+    goals_of,
+    parse_goal,
+)
+from torquesim.optimisation.problem import FAILED_COST, apply_timing_errors, three_ramps
+from torquesim.optimisation.search import load_checkpoint, optimise_population
+
+G = 9.81
+
+
+@pytest.fixture(scope="module")
+def curl():
+    """The default curl, cut to 1.2 s (every goal below happens before)."""
+    return preset("builtin:elbow-curl").replace(duration=1.2)
+
+
+def _trial(time, q, qd=None, **ground):
+    q = np.asarray(q, dtype=float)
+    qd = np.gradient(q, time) if qd is None else np.asarray(qd, dtype=float)
+    return Trial(time, q[:, None], qd[:, None], np.zeros((time.size, 1)), gravity=G, **ground)
+
+
+# ---- goals on known motions ------------------------------------------------------------
+
+def test_goals_of_a_known_motion(curl):
+    """q = 2t rad: 90° is reached at t = π/4 s with speed 2 rad/s; peak |q̇| and the final
+    angle are read off; the effort of a = 0.5 on 1 unit is 0.25."""
+    t = np.linspace(0.0, 1.0, 101)
+    trial = Trial(t, (2 * t)[:, None], np.full((t.size, 1), 2.0),
+                  np.full((t.size, 2), 0.5), gravity=G)
+    joints = ("elbow",)
+    value = {text: parse_goal(text, curl, maximise=True).value(trial, joints)[0]
+             for text in ("time_to:elbow=90deg", "speed_at:elbow=1.0rad", "peak_speed:elbow",
+                          "final_angle:elbow", "effort")}
+    assert value["time_to:elbow=90deg"] == pytest.approx(math.pi / 4, abs=1e-12)
+    assert value["speed_at:elbow=1.0rad"] == pytest.approx(2.0)
+    assert value["peak_speed:elbow"] == pytest.approx(2.0)
+    assert value["final_angle:elbow"] == pytest.approx(2.0)
+    assert value["effort"] == pytest.approx(0.5)  # 2 units × 0.25
+
+
+def test_a_goal_never_reached_is_undefined_with_its_reason(curl):
+    t = np.linspace(0.0, 1.0, 11)
+    trial = _trial(t, 0.1 * t)
+    value, why = parse_goal("time_to:elbow=90deg", curl, maximise=False).value(trial, ("elbow",))
+    assert math.isnan(value) and why == "elbow never reaches 90 deg"
+
+
+def test_jump_height_of_a_ballistic_flight():
+    """The CoM leaves the ground at t = 0.3 s at 1.2 m with 2.5 m/s upward: its apex is
+    1.2 + 2.5²/(2g) whether or not the run lasts until it; without take-off, the highest
+    point."""
+    jump = preset("builtin:squat-jump")
+    t = np.linspace(0.0, 0.4, 401)
+    off = t >= 0.3
+    vy = np.where(off, 2.5 - G * (t - 0.3), 2.5 * t / 0.3)
+    y = np.where(off, 1.2 + 2.5 * (t - 0.3) - 0.5 * G * (t - 0.3) ** 2,
+                 1.0 + 0.2 * (t / 0.3) ** 2)
+    grf = np.where(off, 0.0, 700.0)
+    trial = _trial(t, np.zeros_like(t), com_y=y, com_speed_x=np.zeros_like(t),
+                   com_speed_y=vy, grf_y=grf)
+    height = parse_goal("jump_height", jump, maximise=True)
+    assert height.value(trial, ("ankle",))[0] == pytest.approx(1.2 + 2.5**2 / (2 * G) - 1.0,
+                                                               rel=1e-12)
+    speed = parse_goal("com_speed_at_takeoff", jump, maximise=True)
+    assert speed.value(trial, ("ankle",))[0] == pytest.approx(2.5, rel=1e-12)
+    grounded = _trial(t, np.zeros_like(t), com_y=y, com_speed_x=np.zeros_like(t),
+                      com_speed_y=vy, grf_y=np.full_like(t, 700.0))
+    assert height.value(grounded, ("ankle",))[0] == pytest.approx(y.max() - y[0])
+    assert speed.value(grounded, ("ankle",)) [1] == "no take-off"
+
+
+@pytest.mark.parametrize("text, message", [
+    ("jump", "is not a goal; allowed: jump_height"),
+    ("time_to:elbow", "allowed time_to:JOINT=ANGLE"),
+    ("peak_speed:knee", "no joint 'knee'; allowed: elbow"),
+    ("jump_height", "needs a body on the ground"),
+    ("-2*effort", "allowed a number > 0"),
+    ("time_to:elbow=abc", "is not a goal"),
+])
+def test_bad_goals_are_one_line_errors(curl, text, message):
+    with pytest.raises(ModelError, match=message.replace("(", r"\(")) as err:
+        parse_goal(text, curl, maximise=True)
+    assert "\n" not in str(err.value)
+
+
+# ---- the searched space ------------------------------------------------------------------
+
+def test_three_ramps_keep_the_activation():
+    """The squat jump's units have 2 or 0 ramps: padded to 3, every unit's activation is the
+    same at every time."""
+    jump = preset("builtin:squat-jump")
+    padded = three_ramps(jump)
+    assert all(len(u.activation.ramps) == 3 for u in padded.units)
+    levels = jump.initial_state().levels
+    t = np.linspace(0.0, jump.duration, 300)
+    for u, (a, b) in enumerate(zip(jump.units, padded.units, strict=True)):
+        np.testing.assert_array_equal(a.activation(t, levels[u]), b.activation(t, levels[u]))
+
+
+def test_timing_errors_move_each_onset_by_its_error():
+    x = np.array([0.1, 0.2, 0.5, 0.05, 0.1, 0.3, 0.2, 0.1, 0.4])  # 1 unit, 3 ramps
+    errors = np.array([[0.01, -0.02, 0.015]])
+
+    def onsets(v):
+        t, out = 0.0, []
+        for i in range(3):
+            out.append(t + v[3 * i])
+            t = out[-1] + v[3 * i + 1]
+        return np.array(out)
+
+    np.testing.assert_allclose(onsets(apply_timing_errors(x, errors)) - onsets(x), errors[0],
+                               atol=1e-15)
+
+
+def test_the_window_bounds_every_parameter(curl):
+    problem = OptimiseProblem(curl, goals_of(curl, minimise="time_to:elbow=90deg"),
+                              window=Window(delay=0.02, duration=0.1, level=0.2))
+    space = problem.space
+    for i, name in enumerate(space.names):
+        if i not in space.free:
+            continue
+        x0, low, high = problem.x0[i], space.lower[i], space.upper[i]
+        kind = name.rsplit(".", 1)[1]
+        expected = {"delay": (max(x0 - 0.02, 0), x0 + 0.02),
+                    "duration": (0.9 * x0, 1.1 * x0),
+                    "level": (max(x0 - max(0.2 * x0, 0.05), 0), min(x0 + max(0.2 * x0, 0.05), 1))}
+        assert (low, high) == pytest.approx(expected[kind], abs=1e-12), name
+
+
+def test_free_and_freeze_choose_what_moves(curl):
+    goals = goals_of(curl, minimise="time_to:elbow=90deg")
+    only = OptimiseProblem(curl, goals, free=("elbow.flexor.ramp1",))
+    assert [only.space.names[i] for i in only.space.free] == [
+        "elbow_flexor.ramp1.delay", "elbow_flexor.ramp1.duration", "elbow_flexor.ramp1.level"]
+    held = OptimiseProblem(curl, goals, frozen={"elbow_extensor": None,
+                                                "elbow_flexor.ramp1.level": 0.6})
+    assert held.space.frozen["elbow_flexor.ramp1.level"] == 0.6
+    assert all(not held.space.names[i].startswith("elbow_extensor") for i in held.space.free)
+    with pytest.raises(ModelError, match="excludes the starting model's"):
+        OptimiseProblem(curl, goals, bounds={"elbow_flexor.ramp1.level": (0.8, 1.0)})
+    with pytest.raises(ModelError, match="is not a parameter"):
+        OptimiseProblem(curl, goals, free=("elbow_flexor.ramp7.level",))
+
+
+# ---- the search ----------------------------------------------------------------------------
+
+def test_a_known_optimum_is_found(curl):
+    """Peak flexion speed within the first 0.25 s, only ramp 1 of the flexor free: the
+    strongest activation, reached as early and as fast as allowed, is best (more activation
+    means more torque at every state). The search ends at that corner, and its value is not
+    beaten by random points of the box."""
+    short = curl.replace(duration=0.25)
+    problem = OptimiseProblem(short, goals_of(short, maximise="peak_speed:elbow"),
+                              free=("elbow_flexor.ramp1",),
+                              bounds={"elbow_flexor.ramp1.delay": (0.0, 0.1),
+                                      "elbow_flexor.ramp1.duration": (0.05, 0.4),
+                                      "elbow_flexor.ramp1.level": (0.2, 1.0)})
+    outcome = optimise_population(problem, OptimiseSettings(generations=80, seed=3))
+    best = problem.space.table(outcome.x)
+    assert best["elbow_flexor.ramp1.level"] > 0.995
+    assert best["elbow_flexor.ramp1.delay"] < 1e-4
+    assert best["elbow_flexor.ramp1.duration"] < 0.0501
+    corner = problem.x0.copy()
+    corner[[0, 1, 2]] = 0.0, 0.05, 1.0
+    corner_value = problem.goal_values(corner)[0][0, 0]
+    assert outcome.values[0] == pytest.approx(corner_value, rel=1e-3)
+    rng = np.random.default_rng(0)
+    box = np.tile(problem.x0, (40, 1))
+    box[:, 0] = rng.uniform(0.0, 0.1, 40)
+    box[:, 1] = rng.uniform(0.05, 0.4, 40)
+    box[:, 2] = rng.uniform(0.2, 1.0, 40)
+    assert np.all(problem.goal_values(box)[0][:, 0] <= corner_value)
+
+
+def test_the_robust_score_is_never_above_the_plain_one(curl):
+    goals = goals_of(curl, maximise="peak_speed:elbow")
+    robust = OptimiseProblem(curl, goals, robust=6, timing_error=0.02)
+    rng = np.random.default_rng(1)
+    low, high = np.array(robust.space.lower), np.array(robust.space.upper)
+    population = np.array([robust.space.full(rng.uniform(low, high)[robust.space.free],
+                                             robust.x0) for _ in range(12)])
+    cost, nominal, worst = robust.score(population)
+    usable = cost < FAILED_COST
+    assert usable.sum() >= 6
+    assert np.all(worst[usable] <= nominal[usable])
+    plain_cost, plain_nominal, _ = OptimiseProblem(curl, goals).score(population)
+    np.testing.assert_array_equal(plain_nominal[usable], nominal[usable])
+    assert np.all(cost[usable] >= plain_cost[usable])
+
+
+def test_resume_ends_where_the_uninterrupted_search_does(curl, tmp_path):
+    goals = goals_of(curl, minimise="time_to:elbow=90deg")
+    settings = OptimiseSettings(generations=8, seed=5)
+    whole = optimise_population(OptimiseProblem(curl, goals), settings)
+    problem = OptimiseProblem(curl, goals)
+    polls = iter(range(100))
+    cut = optimise_population(problem, settings, checkpoint=tmp_path / "c.npz",
+                              should_stop=lambda: next(polls) >= 3)
+    assert cut.interrupted and cut.generations_done == 3
+    again = OptimiseProblem(curl, goals)
+    state = load_checkpoint(tmp_path / "c.npz", again, settings)
+    resumed = optimise_population(again, settings, resume=state)
+    assert resumed.generations_done == 8 and not resumed.interrupted
+    np.testing.assert_array_equal(resumed.x, whole.x)
+    assert resumed.cost == whole.cost
+    assert resumed.simulations == whole.simulations
+    with pytest.raises(ModelError, match="seed = 5, not 6"):
+        load_checkpoint(tmp_path / "c.npz", again, OptimiseSettings(generations=8, seed=6))
+    other = OptimiseProblem(curl, goals_of(curl, maximise="peak_speed:elbow"))
+    with pytest.raises(ModelError, match="belongs to another optimisation"):
+        load_checkpoint(tmp_path / "c.npz", other, settings)
+
+
+def test_a_faster_curl_holds_with_the_reference(curl):
+    """The curl reaches 90° sooner after the search, and the reference re-simulation of the
+    start and optimum agrees with the search's own (IMEX 5 ms) gain to 1 % of it."""
+    best = ts.optimise(curl, minimise="time_to:elbow=90deg",
+                       settings=OptimiseSettings(generations=15))
+    goal = best.summary["goals"][0]
+    assert goal["gain"] > 0.05  # s
+    assert goal["reference_gain"] == pytest.approx(goal["gain"], rel=0.01)
+    assert best.summary["warnings"] == []
+    rerun = ts.simulate(best.model, "reference", output_step=0.005)
+    value = parse_goal("time_to:elbow=90deg", curl, maximise=False).value(
+        Trial.of(rerun), ("elbow",))[0]
+    assert value == pytest.approx(goal["reference_optimum"], abs=1e-6)
+
+
+def test_a_custom_goal_is_any_function_of_the_result(curl):
+    def final_speed(result):
+        return abs(result.qd[-1, 0])
+
+    problem = OptimiseProblem(curl, goals_of(curl, maximise=final_speed),
+                              free=("elbow_flexor.ramp1.level",))
+    named = OptimiseProblem(curl, goals_of(curl, maximise="peak_speed:elbow"),
+                            free=("elbow_flexor.ramp1.level",))
+    assert problem.start_values[0] == pytest.approx(abs(problem.run(problem.x0).qd[-1, 0]))
+    assert named.start_values[0] > 0
+
+
+# ---- the command ---------------------------------------------------------------------------
+
+def test_the_command_writes_an_optimised_model(tmp_path, capsys):
+    out = tmp_path / "o"
+    code = main(["optimise", "--minimise", "time_to:elbow=90deg", "--duration", "1.2",
+                 "--generations", "6", "--out", str(out), "--quiet"])
+    printed = capsys.readouterr().out
+    assert code == 0
+    assert "minimise time_to:elbow=90deg: start 874.3 ms → optimum" in printed
+    summary = json.loads((out / "optimise_summary.json").read_text())
+    goal = summary["goals"][0]
+    assert goal["reference_optimum"] < goal["reference_start"]
+    model = ts.load_model(out / "optimised_model.toml")
+    assert "minimise time_to:elbow=90deg" in model.notes[0]
+    assert (out / "optimise.png").read_bytes()[:4] == b"\x89PNG"
+    assert "<img" in (out / "optimise.html").read_text()
+    table = ts.read_table(out / "optimum_motion.csv")
+    assert table["time"][-1] == pytest.approx(1.2)
+    # an earlier optimisation is not silently replaced
+    assert main(["optimise", "--minimise", "effort", "--out", str(out)]) == 2
+    assert "holds an earlier optimisation" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--maximise", "jump_height"], "needs a body on the ground"),
+    ([], "no goal given"),
+    (["--minimise", "effort", "--bound", "elbow_flexor.ramp1.level=0.9,1"],
+     "excludes the starting model's"),
+    (["--minimise", "effort", "--freeze", "knee_flexor"], "is not a parameter"),
+    (["--minimise", "effort", "--generations", "0"], "0 is not in the range"),
+])
+def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv, message):
+    out = tmp_path / "o"
+    assert main(["optimise", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and err.startswith("error:")
+    assert not out.exists()
