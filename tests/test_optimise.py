@@ -292,3 +292,19 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv, messag
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and err.startswith("error:")
     assert not out.exists()
+
+
+def test_the_same_optimum_on_dask_workers(curl):
+    """Each generation scored by 2 worker processes (one task per chunk) gives the search
+    that this process's threads give: the same candidates, costs and optimum."""
+    distributed = pytest.importorskip("distributed")
+    settings = OptimiseSettings(generations=4, seed=2)
+    here = ts.optimise(curl, minimise="time_to:elbow=90deg", settings=settings)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as client:
+        there = ts.optimise(curl, minimise="time_to:elbow=90deg", settings=settings,
+                            client=client)
+    np.testing.assert_array_equal(there.outcome.x, here.outcome.x)
+    assert there.outcome.history == here.outcome.history
+    assert there.outcome.failures == here.outcome.failures

@@ -677,6 +677,12 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
               show_default=True, help="CMA-ES's initial step, as a fraction of each bound.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
               help="Random seed: the same seed gives the same optimum.")
+@click.option("--workers", type=click.IntRange(1, 1024), default=None,
+              help="Score each generation on a local Dask cluster of N worker processes "
+                   "(default: this process's compiled threads).")
+@click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
+              help="Score each generation on a running Dask scheduler's workers (they need "
+                   "torquesim installed; no shared folder).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="optimise-out",
               show_default=True, help="Directory for the optimised model, motion, figure, "
                                       "page, summary and checkpoint.")
@@ -686,7 +692,8 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
 def optimise(model_path, maximise, minimise, method, step, duration, free, frozen, bounds,
              window_delay, window_duration, window_level, robust, timing_error, robust_mode,
-             generations, population, sigma, seed, out_dir, resume, overwrite, quiet):
+             generations, population, sigma, seed, workers, scheduler, out_dir, resume,
+             overwrite, quiet):
     """Optimise the activation ramps of a model for one or more goals.
 
     Every ramp may move within a window around the starting model's (the optimum stays a
@@ -735,19 +742,13 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
             raise ModelError("--freeze", f"{text!r}: allowed PATH or PATH=VALUE, e.g. "
                              "elbow_flexor.ramp1.level=0.6") from None
     window = Window(delay=window_delay, duration=window_duration, level=window_level)
-    problem = OptimiseProblem(model, goals, method, step, window, tuple(free), freeze,
-                              {k: v for k, v in _parse_assignments(bounds, "--bound",
-                                                                   2).items()},
-                              robust, timing_error, robust_mode)
+    limits = dict(_parse_assignments(bounds, "--bound", 2))
     settings = OptimiseSettings(seed=seed, generations=generations, population=population,
                                 sigma=sigma)
     checkpoint = out / CHECKPOINT_FILE
-    state = None
-    if resume:
-        if not checkpoint.is_file():
-            raise ModelError("--resume", f"no checkpoint {str(checkpoint)!r}; allowed: the "
-                             "--out directory of an earlier optimisation")
-        state = load_checkpoint(checkpoint, problem, settings)
+    if resume and not checkpoint.is_file():
+        raise ModelError("--resume", f"no checkpoint {str(checkpoint)!r}; allowed: the --out "
+                         "directory of an earlier optimisation")
     created = not out.exists()
     stop = []
 
@@ -756,18 +757,37 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
         click.echo("stopping: finishing the current generation, then writing the best so "
                    "far", err=True)
 
-    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
-                                                                 signal.SIGTERM)}
+    from contextlib import nullcontext
+
+    from .batch.engine import connect
+    from .optimisation.distributed import DaskScorer
+
+    engine = (connect(workers=workers, scheduler=scheduler)
+              if workers is not None or scheduler is not None else nullcontext())
+    previous = {}
     try:
-        reporter = Progress(quiet)
-        reporter.say(f"optimising {len(problem.space.free)} parameters of {model.name} "
-                     f"({problem.method} at {problem.step * 1e3:.4g} ms, "
-                     f"{1 + problem.robust} run(s) per candidate)")
-        outcome, summary, files = optimise_and_write(
-            problem, settings, out, resume=state, progress=reporter.say,
-            tick=lambda done, total: reporter.step(done, total, "generations"),
-            should_stop=lambda: bool(stop))
-        reporter.close()
+        with engine as client:
+            # The cluster's workers are forked before this process runs compiled parallel
+            # code (the problem simulates its start): forking after OpenMP is unsafe.
+            problem = OptimiseProblem(model, goals, method, step, window, tuple(free), freeze,
+                                      limits, robust, timing_error, robust_mode)
+            state = None
+            if resume:
+                state = load_checkpoint(checkpoint, problem, settings)
+            previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
+                                                                         signal.SIGTERM)}
+            reporter = Progress(quiet)
+            scorer = None if client is None else DaskScorer(client, problem)
+            where = "this process" if scorer is None else f"{scorer.workers} Dask workers"
+            reporter.say(f"optimising {len(problem.space.free)} parameters of {model.name} "
+                         f"({problem.method} at {problem.step * 1e3:.4g} ms, "
+                         f"{1 + problem.robust} run(s) per candidate, on {where})")
+            outcome, summary, files = optimise_and_write(
+                problem, settings, out, resume=state, progress=reporter.say,
+                tick=lambda done, total: reporter.step(done, total, "generations"),
+                should_stop=lambda: bool(stop),
+                evaluate=scorer)
+            reporter.close()
     except ModelError:
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()

@@ -62,7 +62,7 @@ def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: st
              frozen: dict | None = None, bounds: dict | None = None, robust: int = 0,
              timing_error: float = 0.01, robust_mode: str = "worst",
              settings: OptimiseSettings | None = None, out: str | Path | None = None,
-             progress: Callable[[str], None] | None = None) -> Optimum:
+             client=None, progress: Callable[[str], None] | None = None) -> Optimum:
     """Optimise ``model``'s activation ramps for the goals (see `torquesim.optimisation`).
 
     ``model``: a `ChainModel`, a model file or ``builtin:NAME``. ``maximise`` / ``minimise``:
@@ -70,7 +70,8 @@ def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: st
     functions of a `SimulationResult`). ``free``, ``frozen`` (path → value or None for the
     start's), ``bounds`` (path → (low, high)) and ``window`` say what may move; ``robust``
     perturbed copies with onset errors in ±``timing_error`` s make the optimum robust. With
-    ``out`` the outputs of ``torquesim optimise`` are written there.
+    ``out`` the outputs of ``torquesim optimise`` are written there. With a Dask ``client``
+    each generation is scored on its workers (the same optimum as here).
     """
     from ..io.model_file import load_model
     from .outputs import optimise_and_write, summarise
@@ -83,10 +84,16 @@ def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: st
     problem = OptimiseProblem(model, goals_of(model, maximise, minimise), method, step,
                               window, tuple(free), frozen, bounds, robust, timing_error,
                               robust_mode)
+    evaluate = None
+    if client is not None:
+        from .distributed import DaskScorer
+
+        evaluate = DaskScorer(client, problem)
     if out is not None:
         outcome, summary, files = optimise_and_write(problem, settings, Path(out),
-                                                     progress=progress)
+                                                     progress=progress, evaluate=evaluate)
     else:
-        outcome = optimise_population(problem, settings, progress=progress)
+        outcome = optimise_population(problem, settings, progress=progress,
+                                      evaluate=evaluate)
         summary, files = summarise(problem, outcome, settings), []
     return Optimum(summary["_runs"]["optimum"].model, outcome, summary, files)
