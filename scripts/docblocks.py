@@ -1,8 +1,9 @@
 """Generated blocks of the documentation: the text between ``<!-- generated: NAME -->`` and
 ``<!-- end generated -->`` in a docs page is written by a script of the repository (the
 study by ``scripts/make_docs.py``, the validation figures by ``scripts/validation_figures.py``,
-the fit and batch measurements by ``benchmarks/bench_fit.py --write-docs`` and
-``benchmarks/bench_batch.py --write-docs``), never typed by hand."""
+the fit, optimisation and batch measurements by ``benchmarks/bench_fit.py --write-docs``,
+``benchmarks/bench_optimise.py --write-docs`` and ``benchmarks/bench_batch.py
+--write-docs``), never typed by hand."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ PAGES = {
                       "jump-limits", "jump-stiffness"},
     "docs/validation.md": {"validation-figures"},
     "docs/fitting.md": {"fit-benchmark"},
+    "docs/optimise.md": {"optimise-benchmark"},
     "docs/batch.md": {"batch-benchmark"},
     "docs/concepts.md": {"techniques"},
     "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",

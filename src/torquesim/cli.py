@@ -635,7 +635,8 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
                    "final_angle:JOINT, effort; ANGLE in deg unless it ends in rad; W*GOAL "
                    "weights it (goals are combined in units of their start values).")
 @click.option("--minimise", "--minimize", "minimise", multiple=True, metavar="GOAL",
-              help="A goal to minimise (repeatable), e.g. time_to:elbow=90deg or 0.1*effort.")
+              help="A goal to minimise (repeatable), e.g. time_to:elbow=90deg or '0.1*effort' "
+                   "(quoted for the shell).")
 @click.option("--method", type=click.Choice(FIT_METHODS), default="imex", show_default=True,
               help="Technique of every candidate's run (explicit RK4 ones need a small step; "
                    "runs beyond its stability limit fail).")
