@@ -18,6 +18,7 @@ from torquesim.optimisation import (
     goals_of,
     parse_goal,
 )
+from torquesim.optimisation.outputs import parameter_effects
 from torquesim.optimisation.problem import FAILED_COST, apply_timing_errors, three_ramps
 from torquesim.optimisation.search import load_checkpoint, optimise_population
 
@@ -187,6 +188,11 @@ def test_a_known_optimum_is_found(curl):
     box[:, 1] = rng.uniform(0.05, 0.4, 40)
     box[:, 2] = rng.uniform(0.2, 1.0, 40)
     assert np.all(problem.goal_values(box)[0][:, 0] <= corner_value)
+    # each of the three carries part of the gain: reverting it alone loses some
+    effects = parameter_effects(problem, outcome)
+    assert {e["parameter"] for e in effects} == {f"elbow_flexor.ramp1.{f}" for f in
+                                                 ("delay", "duration", "level")}
+    assert all(e["gain_lost_if_reverted_percent"] > 0 for e in effects)
 
 
 def test_the_robust_score_is_never_above_the_plain_one(curl):

@@ -798,6 +798,9 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
             signal.signal(sig, handler)
     click.echo("\n".join(summary_lines(summary, problem)))
     click.echo(f"wrote {out_dir}/: {', '.join(files)}, {CHECKPOINT_FILE}")
+    if stop and not outcome.interrupted:
+        click.echo("the search had finished when the stop request came: its outputs are "
+                   "complete", err=True)
     if outcome.interrupted:
         click.echo(f"interrupted: best so far written; continue with --resume --out {out_dir}",
                    err=True)

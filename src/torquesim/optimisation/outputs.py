@@ -29,7 +29,7 @@ CHECKPOINT_FILE = "optimise_checkpoint.npz"
 #: The files an optimisation leaves in its directory.
 OPTIMISE_FILES = (MODEL_FILE, MOTION_FILE, STORAGE_FILE, FIGURE_FILE, PAGE_FILE, SUMMARY_FILE,
                   CHECKPOINT_FILE)
-#: How many of the parameters that moved most the summary lists.
+#: How many parameters the summary lists (those whose change carries most of the gain).
 MOVED_SHOWN = 8
 
 
@@ -43,7 +43,7 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
               settings: OptimiseSettings) -> dict:
     """Re-simulate start and optimum with the reference and collect the figures: per goal
     its value at start and optimum (the search's technique, the reference, and with copies
-    the robust value), the gain, the parameters that moved most (in % of their bounds), the
+    the robust value), the gain, the parameters that carry it (`parameter_effects`), the
     failed runs by reason."""
     runs = {}
     for label, x in (("start", outcome.start_x), ("optimum", outcome.x)):
@@ -76,10 +76,7 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
                             "integrator's error; use a smaller --step")
     if outcome.cost >= FAILED_COST:
         warnings.append("no candidate was usable")
-    space = problem.space
-    span = np.array(space.upper) - np.array(space.lower)
-    moved = sorted(((abs(outcome.x[i] - outcome.start_x[i]) / span[i], space.names[i])
-                    for i in space.free), reverse=True)[:MOVED_SHOWN]
+    effects = parameter_effects(problem, outcome)
     return {
         **provenance(),
         "model": problem.start_model.name,
@@ -92,11 +89,9 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
         "window": {"delay_s": problem.window.delay, "duration_fraction": problem.window.duration,
                    "level_fraction": problem.window.level,
                    "min_level": problem.window.min_level},
-        "free_parameters": int(space.free.size),
-        "moved_most": [{"parameter": name, "start": float(outcome.start_x[space.names.index(name)]),
-                        "optimum": float(outcome.x[space.names.index(name)]),
-                        "moved_percent_of_bounds": float(100 * f)} for f, name in moved],
-        "parameters": space.table(outcome.x),
+        "free_parameters": int(problem.space.free.size),
+        "moved_most": effects,
+        "parameters": problem.space.table(outcome.x),
         "search": {"method": "CMA-ES (cmaes)", "seed": settings.seed,
                    "population": outcome.population, "sigma": settings.sigma,
                    "generations": outcome.generations_done,
@@ -110,6 +105,40 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
         "warnings": warnings,
         "_runs": runs,
     }
+
+
+def parameter_effects(problem: OptimiseProblem, outcome: OptimiseOutcome) -> list[dict]:
+    """The free parameters that moved, each with how far (% of its bounds) and the share of
+    the plain gain lost when it alone goes back to its start value (the other parameters at
+    the optimum; > 100 % when that run is worse than the start, None when it fails): the
+    parameters that matter come first. One simulation per moved parameter."""
+    space = problem.space
+    span = np.array(space.upper) - np.array(space.lower)
+    moved = [i for i in space.free if outcome.x[i] != outcome.start_x[i]]
+    if not moved:
+        return []
+    rows = np.tile(outcome.x, (len(moved) + 2, 1))
+    rows[-1] = outcome.start_x
+    for k, i in enumerate(moved):
+        rows[k, i] = outcome.start_x[i]
+    simulations, failures = problem.simulations, problem.failures.copy()
+    values, reasons = problem.goal_values(rows)
+    problem.simulations, problem.failures = simulations, failures  # not the search's
+    cost = problem.cost_of_values(values)
+    gain = cost[-1] - cost[-2]
+    out = []
+    for k, i in enumerate(moved):
+        lost = (None if reasons[k] else
+                float(100 * (cost[k] - cost[-2]) / gain) if gain != 0 else 0.0)
+        out.append({"parameter": space.names[i], "start": float(outcome.start_x[i]),
+                    "optimum": float(outcome.x[i]),
+                    "moved_percent_of_bounds": float(100 * abs(outcome.x[i] - outcome.start_x[i])
+                                                     / span[i]),
+                    "gain_lost_if_reverted_percent": lost,
+                    "reverted_run_fails": reasons[k] or None})
+    out.sort(key=lambda e: -math.inf if e["gain_lost_if_reverted_percent"] is None
+             else -e["gain_lost_if_reverted_percent"])
+    return out[:MOVED_SHOWN]
 
 
 def _value_text(goal, value) -> str:
@@ -132,9 +161,11 @@ def summary_lines(summary: dict, problem: OptimiseProblem) -> list[str]:
                          f"±{r['timing_error_s'] * 1e3:g} ms onset errors: start "
                          f"{goal.shown(e['robust_start'])} → optimum "
                          f"{goal.shown(e['robust_optimum'])}")
-    lines.append("moved most    " + "; ".join(
-        f"{m['parameter']} {m['start']:.4g} → {m['optimum']:.4g}"
-        for m in summary["moved_most"][:4]))
+    lines.append("matters most  " + "; ".join(
+        f"{m['parameter']} {m['start']:.4g} → {m['optimum']:.4g} (reverted alone: "
+        + (f"fails, {m['reverted_run_fails']}" if m["reverted_run_fails"]
+           else f"{m['gain_lost_if_reverted_percent']:.0f} % of the gain lost") + ")"
+        for m in summary["moved_most"][:3]))
     search = summary["search"]
     failed = sum(summary["failed_simulations"].values())
     lines.append(f"search        CMA-ES, seed {search['seed']}, {search['generations']} "
@@ -193,11 +224,15 @@ def write_outputs(out_dir, problem: OptimiseProblem, outcome: OptimiseOutcome,
     rows = [[e["goal"], e["direction"], _value_text(g, e["reference_start"]),
              _value_text(g, e["reference_optimum"]), f"{e['reference_gain_percent']:+.2f} %"]
             for g, e in zip(problem.goals, summary["goals"], strict=True)]
-    moved = [[m["parameter"], m["start"], m["optimum"], m["moved_percent_of_bounds"]]
-             for m in summary["moved_most"]]
+    moved = [[m["parameter"], m["start"], m["optimum"], m["moved_percent_of_bounds"],
+              f"run fails: {m['reverted_run_fails']}" if m["reverted_run_fails"]
+              else f"{m['gain_lost_if_reverted_percent']:.1f} %"] for m in summary["moved_most"]]
     body = [html_page.table(["goal", "direction", "start", "optimum", "gain"], rows),
-            "<h2>Parameters that moved most</h2>",
-            html_page.table(["parameter", "start", "optimum", "moved (% of bounds)"], moved),
+            "<h2>Parameters that carry the gain</h2>",
+            "<p>Each moved parameter set back alone to its start value, the others at the "
+            "optimum: the share of the gain lost (search technique and step).</p>",
+            html_page.table(["parameter", "start", "optimum", "moved (% of bounds)",
+                             "gain lost if reverted"], moved),
             "<h2>Start (dashed) and optimum (solid)</h2>", html_page.image(png, title),
             "<h2>Settings</h2>", html_page.settings_table({
                 "method": summary["method"], "step (ms)": summary["step_s"] * 1e3,
