@@ -160,6 +160,32 @@ def test_free_and_freeze_choose_what_moves(curl):
         OptimiseProblem(curl, goals, free=("elbow_flexor.ramp7.level",))
 
 
+def test_a_run_beyond_the_end_stops_fails_with_its_reason_counted(curl):
+    """Every flexor ramp at full activation swings the elbow past its 150° end stop by more
+    than 2·s_p: that candidate fails, the reason is counted, its cost is FAILED_COST."""
+    problem = OptimiseProblem(curl, goals_of(curl, maximise="peak_speed:elbow"),
+                              bounds={f"elbow_flexor.ramp{k}.level": (0.0, 1.0)
+                                      for k in (1, 2, 3)})
+    strong = problem.x0.copy()
+    strong[[2, 5, 8]] = 1.0
+    cost, nominal, _ = problem.score(np.array([problem.x0, strong]))
+    assert cost[0] < 0 and cost[1] == FAILED_COST and math.isnan(nominal[1, 0])
+    assert problem.failures == {"elbow left its range (0 to 150 deg)": 1}
+    run = problem.run(strong)
+    assert np.degrees(run.q[:, 0].max()) > 150 + np.degrees(2 * 0.05)
+
+
+def test_goals_combine_in_units_of_the_start(curl):
+    """C = Σ w·σ·v/|v_start|: at the start every goal contributes ∓w; a candidate's cost is
+    the weighted sum of its goal values over the start's."""
+    problem = OptimiseProblem(curl, goals_of(curl, maximise="peak_speed:elbow",
+                                             minimise=("2*effort", "time_to:elbow=90deg")))
+    start = problem.start_values
+    assert problem.cost_of_values(start[None, :])[0] == pytest.approx(-1 + 2 + 1)
+    other = start * np.array([1.1, 0.5, 0.9])
+    assert problem.cost_of_values(other[None, :])[0] == pytest.approx(-1.1 + 2 * 0.5 + 0.9)
+
+
 # ---- the search ----------------------------------------------------------------------------
 
 def test_a_known_optimum_is_found(curl):
