@@ -450,6 +450,23 @@ def _search_options(fn):
     return fn
 
 
+def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str) -> Path:
+    """The --out folder of a search (fit, optimisation): a directory (or a new one in an
+    existing one) that holds none of ``files`` unless --resume or --overwrite says what to do
+    with the earlier ``what``."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ModelError("--out", f"{out_dir!r} is a file; allowed: a directory")
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise ModelError("--out", f"directory {str(out.parent)!r} does not exist")
+    if resume and overwrite:
+        raise ModelError("--overwrite", "contradicts --resume; allowed: one of them")
+    if not resume and not overwrite and any((out / f).exists() for f in files):
+        raise ModelError("--out", f"{out_dir!r} holds an earlier {what}; allowed: --resume "
+                         "to continue it or --overwrite to replace it")
+    return out
+
+
 @cli.command(short_help="Fit activation ramps to a measured motion.")
 @click.option("--target", "target_spec", default=None,
               help="Measured motion: a .csv (a time column and angle columns) or OpenSim "
@@ -537,16 +554,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
     from .fitting.target import BUILTIN_TARGETS
     from .io.model_file import load_model
 
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ModelError("--out", f"{out_dir!r} is a file; allowed: a directory")
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise ModelError("--out", f"directory {str(out.parent)!r} does not exist")
-    if resume and overwrite:
-        raise ModelError("--overwrite", "contradicts --resume; allowed: one of them")
-    if not resume and not overwrite and any((out / f).exists() for f in FIT_FILES):
-        raise ModelError("--out", f"{out_dir!r} holds an earlier fit; allowed: --resume to "
-                         "continue it or --overwrite to replace it")
+    out = _search_folder(out_dir, resume, overwrite, FIT_FILES, "fit")
     base = load_model(model_path)
     if target_spec is None:
         own = model_path.removeprefix("builtin:")
@@ -714,16 +722,7 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
     )
     from .optimisation.search import load_checkpoint
 
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ModelError("--out", f"{out_dir!r} is a file; allowed: a directory")
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise ModelError("--out", f"directory {str(out.parent)!r} does not exist")
-    if resume and overwrite:
-        raise ModelError("--overwrite", "contradicts --resume; allowed: one of them")
-    if not resume and not overwrite and any((out / f).exists() for f in OPTIMISE_FILES):
-        raise ModelError("--out", f"{out_dir!r} holds an earlier optimisation; allowed: "
-                         "--resume to continue it or --overwrite to replace it")
+    out = _search_folder(out_dir, resume, overwrite, OPTIMISE_FILES, "optimisation")
     if not maximise and not minimise:
         raise ModelError("--maximise", "no goal given; allowed: --maximise GOAL or "
                          "--minimise GOAL, e.g. --minimise time_to:elbow=90deg")

@@ -18,7 +18,6 @@ from its beginning, so the result is the one an uninterrupted fit gives).
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable
@@ -30,7 +29,7 @@ from scipy.optimize import differential_evolution, minimize
 from scipy.stats import qmc
 
 from ..errors import ModelError, check_range
-from ..io.atomic import write_atomic
+from ..io.checkpoint import read_checkpoint, save_checkpoint
 from ..io.fingerprint import fingerprint as hash_parts
 from .initial_guess import initial_guess
 from .objective import FAILED_SCORE
@@ -128,17 +127,6 @@ def fingerprint(problem: FitProblem) -> str:
                        problem.weights.tolist(), problem.target.joints), *channels)
 
 
-def save_checkpoint(path, state: dict) -> None:
-    """Write the optimiser state atomically (``.npz``)."""
-    def write(tmp: Path) -> None:
-        with tmp.open("wb") as fh:
-            np.savez(fh, meta=json.dumps({k: v for k, v in state.items()
-                                          if not isinstance(v, np.ndarray)}),
-                     **{k: v for k, v in state.items() if isinstance(v, np.ndarray)})
-
-    write_atomic(path, write)
-
-
 #: What a checkpoint must hold to be resumed.
 CHECKPOINT_KEYS = ("version", "fingerprint", "search", "seed", "population_per_parameter",
                    "starts", "stage", "generations_done", "polish_done", "simulations", "failed",
@@ -151,29 +139,7 @@ def load_checkpoint(path, problem: FitProblem, settings: SearchSettings) -> dict
     differ). Never unpickles; an empty, truncated or foreign file is a one-line
     `ModelError` saying which."""
     name = repr(str(path))
-    try:
-        with open(path, "rb") as fh:
-            magic = fh.read(4)
-    except OSError as exc:
-        raise ModelError("resume", f"cannot read checkpoint {name}: {exc.strerror or exc}") \
-            from None
-    if magic != b"PK\x03\x04":  # every .npz is a zip archive
-        raise ModelError("resume", f"{name} is {'empty' if not magic else 'not a zip file'}: "
-                         "not a torquesim checkpoint; allowed: the fit_checkpoint.npz of an "
-                         "earlier fit")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            state = json.loads(str(data["meta"]))
-            state.update({k: data[k] for k in data.files if k != "meta"})
-    except Exception as exc:  # noqa: BLE001 - zip, npy and JSON damage all mean "corrupt"
-        raise ModelError("resume", f"checkpoint {name} is corrupt or not a torquesim "
-                         f"checkpoint ({type(exc).__name__}); allowed: the fit_checkpoint.npz "
-                         "of an earlier fit, or start again without --resume") from None
-    missing = [k for k in CHECKPOINT_KEYS if k not in state]
-    if missing:
-        raise ModelError("resume", f"{name} is not a torquesim checkpoint (no "
-                         f"{', '.join(missing[:3])}); allowed: the fit_checkpoint.npz of an "
-                         "earlier fit")
+    state = read_checkpoint(path, CHECKPOINT_KEYS, "the fit_checkpoint.npz of an earlier fit")
     if state["version"] != CHECKPOINT_VERSION or state["fingerprint"] != fingerprint(problem):
         raise ModelError("resume", f"checkpoint {name} belongs to another fit (target, "
                          "model, bounds, method, step or weights differ, or an older "

@@ -25,8 +25,8 @@ __all__ = ["GOALS", "Goal", "OptimiseProblem", "OptimiseSettings", "Optimum", "T
 class Optimum:
     """What `optimise` returns: the optimised ``model`` (a `ChainModel`), the search's
     ``outcome`` and the ``summary`` (goals at start and optimum with the reference solver,
-    gains, the parameters that carry them, failures; as ``optimise_summary.json``), and the files written
-    (when ``out`` was given)."""
+    gains, the parameters that carry them, failures; as ``optimise_summary.json``), and the
+    files written (when ``out`` was given)."""
 
     model: object
     outcome: OptimiseOutcome

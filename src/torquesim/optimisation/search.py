@@ -13,18 +13,16 @@ stored costs, no simulation) and continues, so it ends where an uninterrupted on
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import ModelError, check_range
-from ..io.atomic import write_atomic
+from ..io.checkpoint import read_checkpoint, save_checkpoint
 from ..io.fingerprint import fingerprint as hash_parts
 from .problem import FAILED_COST, OptimiseProblem
 
@@ -106,36 +104,12 @@ CHECKPOINT_KEYS = ("version", "fingerprint", "seed", "population", "sigma",
                    "history", "wall_time", "converged")
 
 
-def save_checkpoint(path, state: dict) -> None:
-    """Write the search state atomically (``.npz``: arrays plus a JSON record)."""
-    def write(tmp: Path) -> None:
-        with tmp.open("wb") as fh:
-            np.savez(fh, meta=json.dumps({k: v for k, v in state.items()
-                                          if not isinstance(v, np.ndarray)}),
-                     **{k: v for k, v in state.items() if isinstance(v, np.ndarray)})
-
-    write_atomic(path, write)
-
-
 def load_checkpoint(path, problem: OptimiseProblem, settings: OptimiseSettings) -> dict:
     """Read a checkpoint of this problem and these settings (a larger ``generations`` may
     differ). Never unpickles; a foreign, empty or damaged file is a one-line `ModelError`."""
     name = repr(str(path))
-    allowed = "allowed: the optimise_checkpoint.npz of an earlier optimisation"
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            state = json.loads(str(data["meta"]))
-            state.update({k: data[k] for k in data.files if k != "meta"})
-    except OSError as exc:
-        raise ModelError("resume", f"cannot read checkpoint {name}: {exc.strerror or exc}; "
-                         f"{allowed}") from None
-    except Exception as exc:  # noqa: BLE001 - zip, npy and JSON damage all mean "corrupt"
-        raise ModelError("resume", f"checkpoint {name} is corrupt or not a torquesim "
-                         f"checkpoint ({type(exc).__name__}); {allowed}") from None
-    missing = [k for k in CHECKPOINT_KEYS if k not in state]
-    if missing:
-        raise ModelError("resume", f"{name} is not an optimisation checkpoint (no "
-                         f"{', '.join(missing[:3])}); {allowed}")
+    state = read_checkpoint(path, CHECKPOINT_KEYS,
+                            "the optimise_checkpoint.npz of an earlier optimisation")
     if state["version"] != CHECKPOINT_VERSION or state["fingerprint"] != fingerprint(problem):
         raise ModelError("resume", f"checkpoint {name} belongs to another optimisation "
                          "(model, goals, bounds, technique, step or perturbations differ); "
