@@ -340,3 +340,12 @@ def test_the_same_optimum_on_dask_workers(curl):
     np.testing.assert_array_equal(there.outcome.x, here.outcome.x)
     assert there.outcome.history == here.outcome.history
     assert there.outcome.failures == here.outcome.failures
+
+
+def test_a_goal_the_free_parameters_cannot_move_is_told(curl):
+    """Flexor ramp 3 starts after 1.9 s; the curl passes 30° long before: no candidate can
+    beat the start, and the summary says so instead of reporting a gain of 0 silently."""
+    best = ts.optimise(curl, minimise="time_to:elbow=30deg", free=["elbow_flexor.ramp3.delay"],
+                       settings=OptimiseSettings(generations=3))
+    assert best.summary["goals"][0]["gain"] == 0.0
+    assert best.summary["warnings"][0].startswith("no candidate beat the start in 3 generations")

@@ -16,7 +16,7 @@ from ..io.model_file import save_model
 from ..io.provenance import provenance
 from ..io.tables import write_table
 from .goals import Trial
-from .problem import FAILED_COST, OptimiseProblem
+from .problem import OptimiseProblem
 from .search import OptimiseOutcome, OptimiseSettings
 
 MODEL_FILE = "optimised_model.toml"
@@ -74,8 +74,12 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
             warnings.append(f"the gain in {g.label} does not hold when the optimum is "
                             "re-simulated with the reference solver: it leans on the "
                             "integrator's error; use a smaller --step")
-    if outcome.cost >= FAILED_COST:
-        warnings.append("no candidate was usable")
+    if np.array_equal(outcome.x, outcome.start_x):
+        failed = sum(outcome.failures.values())
+        warnings.append(f"no candidate beat the start in {outcome.generations_done} "
+                        f"generations ({failed} of {outcome.simulations} runs failed): widen "
+                        "the window (--window-*, --bound), free more parameters, or check that "
+                        "the goal can change")
     effects = parameter_effects(problem, outcome)
     return {
         **provenance(),
