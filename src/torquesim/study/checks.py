@@ -37,17 +37,22 @@ def check_techniques() -> list[tuple[str, str, Coupling | None]]:
     return out
 
 
-def check_study(model, steps=CHECK_STEPS, progress=None) -> list[dict]:
+def check_study(model, steps=CHECK_STEPS, progress=None, advise: bool = True) -> list[dict]:
     """One row per (technique, step): the true max angle error (rad), whether the run
     warned or was refused, the estimate, and the verdict (``caught``, ``missed``,
-    ``false alarm``, ``quiet`` or ``warned`` for runs between the two thresholds)."""
+    ``false alarm``, ``quiet`` or ``warned`` for runs between the two thresholds).
+
+    ``advise=False`` skips `simulate`'s search for a step to recommend. That search runs
+    only on a run that already failed or broke the stability limit, which warns (or is
+    refused) either way, so no verdict changes; it only saves time (a few seconds per
+    unstable run)."""
     model = as_chain(model)
     reference = reference_solution(model)
     rows = []
     jobs = [(t, h) for t in check_techniques() for h in steps]
     for i, ((name, method, coupling), h) in enumerate(jobs):
         try:
-            run = simulate(model, method, h, coupling=coupling)
+            run = simulate(model, method, h, coupling=coupling, advise=advise)
             error = _errors(run, reference)["max_error_rad"]
             warned, message = bool(run.message), run.message
             estimate = run.settings.get("estimated_error_rad")
