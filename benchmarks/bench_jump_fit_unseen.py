@@ -1,7 +1,7 @@
 """The squat-jump fit on jumps the preset did not make: how far the fit gets from its
 inverse-dynamics start when the target is not the preset's own motion.
 
-Run:  python benchmarks/bench_jump_fit_unseen.py [--angles-only] [--starts N]
+Run:  python benchmarks/bench_jump_fit_unseen.py [--angles-only] [--starts N] [--write-docs]
 
 Two targets, each made by `builtin:squat-jump` with other extensor timings and levels
 (simulated by the reference solver, 200 Hz): "late-ankle" (plantarflexors at 120 ms and 0.9,
@@ -10,14 +10,17 @@ knee extensors at 30 ms and 0.95, hip extensors at 70 ms and 0.85) and "early-hi
 fit exists. Prints, per target, the fit's RMS per joint and of the vertical ground reaction
 force (% of body weight) with the reference, simulations and wall time. With
 ``--angles-only`` the target holds only the four angles (the force is then reported, not
-fitted).
+fitted). With ``--write-docs`` the results go into the ``jump-unseen`` block of
+docs/fitting.md (with the date and load).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -26,6 +29,9 @@ from torquesim.fitting import FitProblem, SearchSettings, Target
 from torquesim.fitting.fit import fit_to_accuracy
 from torquesim.io.provenance import load_average
 from torquesim.model.activation import ActivationProfile, Ramp
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
+from docblocks import measured_on, write_blocks  # noqa: E402
 
 #: Extensor (delay s, level) of each target.
 TARGETS = {
@@ -50,8 +56,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--angles-only", action="store_true")
     parser.add_argument("--starts", type=int, default=SearchSettings().starts)
+    parser.add_argument("--write-docs", action="store_true",
+                        help="write the results into docs/fitting.md")
     args = parser.parse_args()
-    print(f"load average at start: {load_average():.2f} (2 cores)")
+    load = load_average()
+    print(f"load average at start: {load:.2f} (2 cores)")
+    rows = []
     model = ts.load_model("builtin:squat-jump")
     weight = model.gravity * sum(s.total_mass for s in model.segments)
     for name, timing in TARGETS.items():
@@ -76,7 +86,21 @@ def main() -> None:
               f"RMS {joints}; vertical GRF {percent:.2f} % body weight"
               f"{' (not fitted)' if args.angles_only else ''}; {outcome.simulations} "
               f"simulations, {wall:.1f} s")
+        worst = max(rms for rms, _ in problem.errors_deg(fitted).values())
+        rows.append(f"| {name} | {outcome.initial_score:.2f}° | {outcome.score:.4f}° | "
+                    f"{worst:.4f}° | {percent:.3f} % | {outcome.simulations} | {wall:.1f} s |")
     print(f"load average at end: {load_average():.2f}")
+    if args.write_docs and not args.angles_only:
+        block = (f"Measured by `python benchmarks/bench_jump_fit_unseen.py --write-docs` "
+                 f"({measured_on(load)}). Each target is a jump made by the preset with other "
+                 "extensor timings and levels (late-ankle: plantarflexors at 120 ms and 0.9, "
+                 "knee extensors at 30 ms and 0.95, hip extensors at 70 ms and 0.85; early-hip: "
+                 "90 ms / 1.0, 60 ms / 0.9, 40 ms / 1.0), fitted with the defaults from the "
+                 "inverse-dynamics start; errors with the reference solver.\n\n"
+                 "| target | start objective | objective | worst joint RMS | vertical GRF RMS "
+                 "(body weight) | simulations | wall |\n|---|---|---|---|---|---|---|\n"
+                 + "\n".join(rows) + "\n")
+        write_blocks("docs/fitting.md", {"jump-unseen": block})
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ PAGES = {
     "docs/study.md": {"study-verdict", "study-limits", "default-checks", "jump-verdict",
                       "jump-limits", "jump-stiffness"},
     "docs/validation.md": {"validation-figures"},
-    "docs/fitting.md": {"fit-benchmark"},
+    "docs/fitting.md": {"fit-benchmark", "jump-unseen"},
     "docs/optimise.md": {"optimise-benchmark"},
     "docs/batch.md": {"batch-benchmark"},
     "docs/concepts.md": {"techniques"},
