@@ -157,3 +157,24 @@ def test_one_fingerprint_tells_apart_what_it_must():
               fingerprint("mode", "l", a, ("imex", 5e-3)),
               fingerprint("model", a, ("imex", 2.5e-3))]
     assert base not in others and len(set(others)) == len(others)
+
+
+def test_summaries_are_json_every_reader_accepts():
+    """A goal a run could not compute (NaN) or a failed run's error (inf) is written as
+    null, not as NaN/Infinity (which strict parsers refuse); integers stay integers."""
+    import json
+    import math
+
+    import numpy as np
+
+    from torquesim.io.json_text import json_text
+
+    text = json_text({"gain_percent": math.nan, "errors": [math.inf, 0.5, np.int64(3)],
+                      "values": np.array([1.0, np.nan]), "ok": True, "n": np.float64(2.5)})
+
+    def refuse(constant):
+        raise ValueError(constant)
+
+    data = json.loads(text, parse_constant=refuse)
+    assert data == {"gain_percent": None, "errors": [None, 0.5, 3], "values": [1.0, None],
+                    "ok": True, "n": 2.5}

@@ -5,13 +5,13 @@ not the integrator's."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
 from ..io.atomic import write_atomic, write_text_atomic
+from ..io.json_text import json_text
 from ..io.model_file import save_model
 from ..io.provenance import provenance
 from ..io.tables import write_table
@@ -248,7 +248,7 @@ def write_outputs(out_dir, problem: OptimiseProblem, outcome: OptimiseOutcome,
                 "robust copies": problem.robust})]
     write_text_atomic(out / PAGE_FILE, html_page.page(title, body))
     public = {k: v for k, v in summary.items() if not k.startswith("_")}
-    write_text_atomic(out / SUMMARY_FILE, json.dumps(public, indent=2, default=float) + "\n")
+    write_text_atomic(out / SUMMARY_FILE, json_text(public))
     return [MODEL_FILE, MOTION_FILE, STORAGE_FILE, FIGURE_FILE, PAGE_FILE, SUMMARY_FILE]
 
 
