@@ -63,7 +63,7 @@ def main() -> None:
     print(f"load average at start: {load:.2f} (2 cores)")
     rows = []
     model = ts.load_model("builtin:squat-jump")
-    weight = model.gravity * sum(s.total_mass for s in model.segments)
+    weight = model.weight
     for name, timing in TARGETS.items():
         run = ts.simulate(made_by(model, timing), "reference", output_step=0.005)
         columns = run.columns()

@@ -52,6 +52,28 @@ def pack_profile(x, offset, initial_level, out):
         t = start + x[offset + 3 * i + 1]
 
 
+#: What became of a candidate's run (`run_status`), and why a run that failed is unusable.
+RUN_OK, RUN_NON_FINITE, RUN_DIVERGED, RUN_UNSTABLE_MUSCLE, RUN_UNSTABLE_CONTACT = range(5)
+RUN_REASONS = ("", "non-finite state", "diverged", "step beyond explicit RK4's stability "
+               "limit in a unit", "step beyond RK4's stability limit in a ground contact")
+
+
+@njit(cache=True, error_model="numpy")
+def run_status(stats, explicit_muscles):
+    """RUN_OK, or the first reason the run with these loop ``stats`` is unusable:
+    non-finite, diverged, a unit beyond the RK4 stability limit (only when the muscles are
+    explicit), a ground contact beyond it (explicit in every technique)."""
+    if stats[fs.STATUS] == fs.NON_FINITE:
+        return RUN_NON_FINITE
+    if stats[fs.STATUS] != fs.OK:
+        return RUN_DIVERGED
+    if explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
+        return RUN_UNSTABLE_MUSCLE
+    if stats[fs.CONTACT_RATIO] > fs.RK4_STABILITY_LIMIT:
+        return RUN_UNSTABLE_CONTACT
+    return RUN_OK
+
+
 @njit(cache=True, error_model="numpy")
 def sample_joint(states, step, times, joint, n, theta_out, omega_out):
     """Joint ``joint``'s q and q̇ at ``times`` (s from the start) from fixed-step states
@@ -95,11 +117,7 @@ def simulate_candidate(x, loop, coupling, y0, step, n_steps, seg, joints, units,
     stats = np.zeros(fs.STATS_SIZE)
     fs.run_step_loop(*loop, y0, step, n_steps, seg, joints, units, profiles, coupling, states,
                      stats)
-    if stats[fs.STATUS] != fs.OK:
-        return False
-    if explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
-        return False
-    if stats[fs.CONTACT_RATIO] > fs.RK4_STABILITY_LIMIT:
+    if run_status(stats, explicit_muscles) != RUN_OK:
         return False
     for r in range(scored.shape[0]):
         sample_joint(states, step, times, scored[r], n, theta_out[r], omega_out[r])

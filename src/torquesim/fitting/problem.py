@@ -12,7 +12,7 @@ from ..model.activation import activation
 from ..model.chain import ChainModel, as_chain
 from ..model.presets import preset
 from ..solvers import fixed_step as fs
-from ..solvers.coupling import IMEX, Coupling
+from ..solvers.coupling import default_coupling
 from ..solvers.techniques import FIT_METHODS
 from . import objective as obj
 from .parameters import ParameterSpace, with_ramps
@@ -161,14 +161,11 @@ class FitProblem:
         self.y0 = start.state
         self.levels = np.array(start.levels, dtype=float)
         self.rests = np.array([0.0 if lv is None else lv for lv in self.initial_levels])
-        self.coupling = {"imex": IMEX, "partitioned": Coupling(),
-                         "monolithic": Coupling()}[self.method]
+        self.coupling = default_coupling(self.method)
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_loop = fs.step_loop_switches(self.method == "monolithic", base.n_coordinates,
-                                               self.coupling.to_array(),
-                                               base.has_activation_dynamics,
-                                               base.base == "free", not base.is_serial)
+        self.step_loop = fs.model_step_loop(base, self.method == "monolithic",
+                                            self.coupling.to_array())
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
         self.target_angles = np.ascontiguousarray(self.target.angles)

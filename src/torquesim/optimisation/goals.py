@@ -40,7 +40,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ModelError, check_range
-from ..model.activation import activation
 
 #: Goal name → (needs a joint, needs an angle, unit of its value, needs ground contacts).
 GOALS = {
@@ -95,8 +94,9 @@ class Trial:
         angles = np.column_stack([cols[j.coordinate] for j in model.joints])
         speeds = np.column_stack([cols[f"{j.coordinate}_speed"] for j in model.joints])
         elapsed = result.time - result.time[0]
-        activations = np.array([[activation(t, row) for row in result.packed.activations]
-                                for t in elapsed]).reshape(elapsed.size, len(model.units))
+        starts = result.packed.activations[:, 0]  # each profile's initial level a_0
+        activations = np.column_stack([unit.activation(elapsed, a0) for unit, a0 in
+                                       zip(model.units, starts, strict=True)])
         ground = {}
         if model.contacts:
             ground = {k: cols[c] for k, c in (("com_y", "com_y"), ("com_speed_x", "com_speed_x"),

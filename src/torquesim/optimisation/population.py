@@ -6,16 +6,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..fitting.objective import PROFILE_SIZE, pack_profile
+from ..fitting.objective import PROFILE_SIZE, RUN_OK, pack_profile, run_status
 from ..fitting.parameters import PER_UNIT
 from ..model.activation import activation
 from ..model.body import body_work_size, ground_outputs
 from ..solvers import fixed_step as fs
-
-#: Outcome codes of a candidate's run (`simulate_population`).
-RUN_OK, RUN_NON_FINITE, RUN_DIVERGED, RUN_UNSTABLE_MUSCLE, RUN_UNSTABLE_CONTACT = range(5)
-RUN_REASONS = ("", "non-finite state", "diverged", "step beyond explicit RK4's stability "
-               "limit in a unit", "step beyond RK4's stability limit in a ground contact")
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -27,8 +22,7 @@ def simulate_population(population, loop, coupling, y0, step, n_steps, seg, join
     starting at ``levels[u]``. Fills, per candidate j: ``states[j]`` (steps + 1 rows of y),
     ``activations[j]`` (units × steps + 1, the profiles' values), with ``ground`` the
     `GROUND_OUTPUTS` of a body on the ground at every step into ``outputs[j]`` (4 × steps + 1),
-    and ``status[j]`` (RUN_* codes: the first of non-finite, diverged, a unit beyond the RK4
-    limit when ``explicit_muscles``, a contact beyond it)."""
+    and ``status[j]`` (`fitting.objective.run_status`)."""
     n = joints.shape[0]
     for j in prange(population.shape[0]):
         seg_j, joints_j, units_j = seg.copy(), joints.copy(), units.copy()
@@ -42,16 +36,7 @@ def simulate_population(population, loop, coupling, y0, step, n_steps, seg, join
         for u in range(levels.shape[0]):
             for k in range(n_steps + 1):
                 activations[j, u, k] = activation(k * step, profiles[u])
-        if stats[fs.STATUS] == fs.NON_FINITE:
-            status[j] = RUN_NON_FINITE
-        elif stats[fs.STATUS] != fs.OK:
-            status[j] = RUN_DIVERGED
-        elif explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
-            status[j] = RUN_UNSTABLE_MUSCLE
-        elif stats[fs.CONTACT_RATIO] > fs.RK4_STABILITY_LIMIT:
-            status[j] = RUN_UNSTABLE_CONTACT
-        else:
-            status[j] = RUN_OK
+        status[j] = run_status(stats, explicit_muscles)
         if ground and status[j] == RUN_OK:
             flat = joints_j.ravel()
             work = np.zeros(body_work_size(n, seg_j))

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ModelError, check_range
+from ..fitting.objective import RUN_OK, RUN_REASONS
 from ..fitting.parameters import (
     HARD_LIMITS,
     PER_UNIT,
@@ -41,7 +42,7 @@ from ..model.activation import ActivationProfile, Ramp
 from ..model.body import GROUND_OUTPUTS
 from ..model.chain import ChainModel, as_chain
 from ..solvers import fixed_step as fs
-from ..solvers.coupling import IMEX, Coupling
+from ..solvers.coupling import default_coupling
 from ..solvers.techniques import FIT_METHODS
 from . import population as pop
 from .goals import Goal, Trial
@@ -256,21 +257,16 @@ class OptimiseProblem:
         begin = self.model3.initial_state()
         self.y0 = begin.state
         self.levels = np.array(begin.levels, dtype=float)
-        self.initial_levels = [None] * len(start.units)  # the model's own
-        self.coupling = {"imex": IMEX, "partitioned": Coupling(),
-                         "monolithic": Coupling()}[self.method]
+        self.coupling = default_coupling(self.method)
         packed = self.model3.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_loop = fs.step_loop_switches(self.method == "monolithic",
-                                               start.n_coordinates, self.coupling.to_array(),
-                                               start.has_activation_dynamics,
-                                               start.base == "free", not start.is_serial)
+        self.step_loop = fs.model_step_loop(start, self.method == "monolithic",
+                                            self.coupling.to_array())
         self.ground = bool(start.contacts) and start.base == "free"
         self.joint_names = tuple(j.name for j in start.joints)
         rng = np.random.default_rng(self.perturbation_seed)
         self.timing_errors = rng.uniform(-self.timing_error, self.timing_error,
                                          (self.robust, len(start.units), RAMPS_PER_UNIT))
-        self.scales = np.ones(len(self.goals))
         values, reasons = self.goal_values(self.x0[None, :])
         if reasons[0]:
             raise ModelError("model", f"the starting model's run fails ({reasons[0]}) at "
@@ -289,7 +285,7 @@ class OptimiseProblem:
 
     def model_for(self, x) -> ChainModel:
         """The model with the activation ramps of the full parameter vector ``x``."""
-        return with_ramps(self.model3, x, self.initial_levels)
+        return with_ramps(self.model3, x, [None] * len(self.model3.units))  # own levels
 
     def trials(self, population) -> list[tuple[Trial | None, str]]:
         """(trial, "") or (None, why it failed) of every row of ``population`` (full
@@ -317,8 +313,8 @@ class OptimiseProblem:
         time = np.arange(steps) * self.step
         result = []
         for j in range(m):
-            if status[j] != pop.RUN_OK:
-                result.append((None, pop.RUN_REASONS[status[j]]))
+            if status[j] != RUN_OK:
+                result.append((None, RUN_REASONS[status[j]]))
                 continue
             angles = states[j, :, nb:n]
             why = self._outside_range(angles)

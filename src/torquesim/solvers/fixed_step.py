@@ -670,6 +670,14 @@ def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
             on(tree))
 
 
+def model_step_loop(model, monolithic: bool, exchange) -> tuple:
+    """`step_loop_switches` of a `ChainModel`: its coordinates, activation dynamics, base
+    and tree read off the model."""
+    return step_loop_switches(monolithic, model.n_coordinates, exchange,
+                              model.has_activation_dynamics, model.base == "free",
+                              not model.is_serial)
+
+
 @njit(cache=True, error_model="numpy")
 def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned_chain,
                   sdirk_muscles, rk4_muscles, stage_exchange, end_exchange, dynamics,

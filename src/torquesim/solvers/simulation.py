@@ -163,9 +163,7 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     else:
         label, exchange = coupling.label(), coupling.to_array()
         method = "partitioned"
-    switches = fs.step_loop_switches(method == "monolithic", model.n_coordinates, exchange,
-                                     model.has_activation_dynamics, model.base == "free",
-                                     not model.is_serial)
+    switches = fs.model_step_loop(model, method == "monolithic", exchange)
     # A zero-step call compiles the loop (or loads it from the disk cache) outside the timing.
     fs.run_step_loop(*switches, y0, float(step), 0, *packed, exchange, out, fs.new_stats())
     start = _time.perf_counter()
