@@ -2,13 +2,17 @@
 empty (each in a fresh temporary cache folder, NUMBA_CACHE_DIR), then the same commands warm.
 
     python benchmarks/bench_cold_start.py
-    python benchmarks/bench_cold_start.py --baseline /path/to/older/checkout/src
+    python benchmarks/bench_cold_start.py --baseline /path/to/older/checkout/src --repeats 3
+    python benchmarks/bench_cold_start.py --baseline SRC --baseline-label 4c8121d0 --write-docs
 
 Prints each command's wall time (whole process: interpreter, imports, compilation, the run)
 and the load average before and after. Compilation is most of a cold start; the numbers move
 with the machine's load, so compare them only within one run. With ``--baseline``, the same
 commands also run on another source tree (put first on PYTHONPATH; e.g. a ``git worktree`` of
-an older commit), alternating with this one, and the ratio this/baseline is printed.
+an older commit), alternating with this one, and the ratio this/baseline is printed. With
+``--repeats N`` every measurement is repeated N times, the trees interleaved, and the minimum
+kept (load only ever adds time). ``--write-docs`` writes the table into the generated block
+``cold-start`` of docs/tutorial.md (`scripts/docblocks.py`).
 """
 
 from __future__ import annotations
@@ -19,11 +23,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
+from docblocks import measured_on, write_blocks  # noqa: E402
 
 COMMANDS = {
-    "simulate (monolithic, default curl)": ["simulate"],
-    "simulate --method imex": ["simulate", "--method", "imex", "--step", "1ms"],
-    "fit (builtin:curl)": ["fit", "--quiet", "--overwrite", "--out", "{tmp}/fit"],
+    "`torquesim simulate` (the default curl, monolithic)": ["simulate"],
+    "`torquesim simulate --method imex --step 1ms`": ["simulate", "--method", "imex", "--step",
+                                                      "1ms"],
+    "`torquesim fit` (builtin:curl)": ["fit", "--quiet", "--overwrite", "--out", "{tmp}/fit"],
 }
 
 
@@ -42,20 +51,58 @@ def cold_and_warm(args, src=None) -> tuple[float, float]:
         return run(args, cache, tmp, src), run(args, cache, tmp, src)
 
 
+def docs_block(rows, load: float, label: str | None, repeats: int) -> str:
+    """The measured table as the generated block ``cold-start``."""
+    lines = [f"Measured by `python benchmarks/bench_cold_start.py"
+             f"{' --baseline SRC' if label else ''} --repeats {repeats} --write-docs` "
+             f"({measured_on(load)}; the whole command, interpreter and imports included; "
+             f"the fastest of {repeats} interleaved repeats):", ""]
+    if label:
+        lines += [f"| first run | cold (empty Numba cache) | cold at {label} | ratio | warm |",
+                  "|---|---|---|---|---|"]
+        for name, cold, warm, base_cold in rows:
+            lines.append(f"| {name} | {cold:.1f} s | {base_cold:.1f} s | "
+                         f"{cold / base_cold:.2f} | {warm:.1f} s |")
+    else:
+        lines += ["| first run | cold (empty Numba cache) | warm |", "|---|---|---|"]
+        for name, cold, warm, _ in rows:
+            lines.append(f"| {name} | {cold:.1f} s | {warm:.1f} s |")
+    return "\n".join(lines) + "\n"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--baseline", help="source folder of the code to compare with")
-    baseline = parser.parse_args().baseline
-    print(f"cores: {os.cpu_count()}; load average at start: {os.getloadavg()[0]:.2f}")
-    for label, args in COMMANDS.items():
-        cold, warm = cold_and_warm(args)
-        line = f"{label:40s} cold {cold:6.1f} s   warm {warm:5.1f} s"
+    parser.add_argument("--baseline-label", help="what the baseline is (e.g. a commit)")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="interleaved repeats per measurement; the minimum is kept")
+    parser.add_argument("--write-docs", action="store_true",
+                        help="write the table into docs/tutorial.md (block cold-start)")
+    options = parser.parse_args()
+    baseline, repeats = options.baseline, max(1, options.repeats)
+    label = options.baseline_label or baseline
+    load = os.getloadavg()[0]
+    print(f"cores: {os.cpu_count()}; load average at start: {load:.2f}")
+    rows = []
+    for name, args in COMMANDS.items():
+        cold, warm, base_cold = [], [], []
+        for _ in range(repeats):
+            c, w = cold_and_warm(args)
+            cold.append(c)
+            warm.append(w)
+            if baseline:
+                base_cold.append(cold_and_warm(args, baseline)[0])
+        line = f"{name:55s} cold {min(cold):6.1f} s   warm {min(warm):5.1f} s"
         if baseline:
-            base_cold, base_warm = cold_and_warm(args, baseline)
-            line += (f"   baseline cold {base_cold:6.1f} s   warm {base_warm:5.1f} s"
-                     f"   cold ratio {cold / base_cold:.2f}")
+            line += (f"   baseline cold {min(base_cold):6.1f} s"
+                     f"   cold ratio {min(cold) / min(base_cold):.2f}")
         print(line, flush=True)
+        rows.append((name, min(cold), min(warm), min(base_cold) if baseline else None))
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
+    if options.write_docs:
+        write_blocks("docs/tutorial.md",
+                     {"cold-start": docs_block(rows, load, label if baseline else None,
+                                               repeats)})
 
 
 if __name__ == "__main__":

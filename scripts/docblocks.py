@@ -1,9 +1,9 @@
 """Generated blocks of the documentation: the text between ``<!-- generated: NAME -->`` and
 ``<!-- end generated -->`` in a docs page is written by a script of the repository (the
 study by ``scripts/make_docs.py``, the validation figures by ``scripts/validation_figures.py``,
-the fit, optimisation and batch measurements by ``benchmarks/bench_fit.py --write-docs``,
-``benchmarks/bench_optimise.py --write-docs`` and ``benchmarks/bench_batch.py
---write-docs``), never typed by hand."""
+the fit, optimisation, batch and first-run measurements by ``benchmarks/bench_fit.py
+--write-docs``, ``benchmarks/bench_optimise.py --write-docs``, ``benchmarks/bench_batch.py
+--write-docs`` and ``benchmarks/bench_cold_start.py --write-docs``), never typed by hand."""
 
 from __future__ import annotations
 
@@ -25,6 +25,7 @@ PAGES = {
     "docs/fitting.md": {"fit-benchmark", "jump-unseen"},
     "docs/optimise.md": {"optimise-benchmark"},
     "docs/batch.md": {"batch-benchmark"},
+    "docs/tutorial.md": {"cold-start"},
     "docs/concepts.md": {"techniques"},
     "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",
                         "motion-squat-jump"},

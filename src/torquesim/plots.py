@@ -143,15 +143,15 @@ def plot_model(model):
     for unit in model.units:
         p = unit.parameters.to_array()
         w = np.linspace(-unit.parameters.max_velocity, unit.parameters.max_velocity, 401)
-        tet = np.array([tetanic_torque_velocity(v, p) for v in w])
-        dif = np.array([differential_activation(v, p) for v in w])
+        tet = np.array([tetanic_torque_velocity(v, p, 0) for v in w])
+        dif = np.array([differential_activation(v, p, 0) for v in w])
         a_v.plot(w, tet, label=unit.name)
         a_d.plot(w, dif * tet, label=unit.name)
         optimum = unit.parameters.optimal_angle
         theta = np.linspace(min(0.0, optimum - 1.5), max(np.pi, optimum + 1.5), 181)
-        a_t.plot(np.degrees(theta), [torque_angle(th, p) for th in theta], label=unit.name)
+        a_t.plot(np.degrees(theta), [torque_angle(th, p, 0) for th in theta], label=unit.name)
         stretch = np.linspace(-0.02, 0.2, 111)
-        a_s.plot(stretch, [unit_torque(s_, p) for s_ in stretch], label=unit.name)
+        a_s.plot(stretch, [unit_torque(s_, p, 0) for s_ in stretch], label=unit.name)
     a_v.set(xlabel="CE velocity ω_cc (rad/s, concentric +)", ylabel="T_ω (N·m)",
             title="tetanic torque/velocity")
     a_d.set(xlabel="CE velocity ω_cc (rad/s, concentric +)", ylabel="d·T_ω (N·m)",

@@ -112,8 +112,8 @@ def quasi_static_activations(model, q, qd, torque, rest_levels):
         """Torque of unit u at activation 1 and its SE stretch for ``torque_guess``."""
         p = params[u]
         d = unit.direction
-        return ce_torque_velocity(d * qd[k, i], p) * torque_angle(
-            q[k, i] + d * torque_guess / unit.parameters.se_stiffness, p)
+        return ce_torque_velocity(d * qd[k, i], p, 0) * torque_angle(
+            q[k, i] + d * torque_guess / unit.parameters.se_stiffness, p, 0)
 
     for k, joint in enumerate(names):
         members = [(u, unit) for u, unit in enumerate(model.units) if unit.joint == joint]
@@ -150,7 +150,7 @@ def fit_ramps(t, level, initial_level: float, lower, upper) -> np.ndarray:
 
     def residual(x):
         pack_profile(x, 0, initial_level, packed)
-        return np.array([activation(ti, packed) for ti in t]) - level
+        return np.array([activation(ti, packed, 0) for ti in t]) - level
 
     best = None
     span = t[-1] - t[0]

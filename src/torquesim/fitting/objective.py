@@ -26,9 +26,9 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..model.activation import activation
 from ..model.body import body_work_size, ground_outputs
 from ..solvers import fixed_step as fs
+from ..solvers.rates import unit_excitation
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
 #: Score of a candidate whose simulation failed or broke the stability guard, deg.
@@ -122,30 +122,33 @@ def simulate_candidate(x, loop, coupling, y0, step, n_steps, seg, joints, units,
     for r in range(scored.shape[0]):
         sample_joint(states, step, times, scored[r], n, theta_out[r], omega_out[r])
     if channels.shape[0] > 0:
-        sample_ground_outputs(states, step, times, n, seg, joints, channels, channel_out)
+        sample_ground_outputs(states, step, times, n, seg, joints, channels, channel_out,
+                              loop[fs.SWITCH_FREE_BASE], loop[fs.SWITCH_TREE])
     return True
 
 
 @njit(cache=True, error_model="numpy")
-def sample_ground_outputs(states, step, times, n, seg, joints, channels, out):
+def sample_ground_outputs(states, step, times, n, seg, joints, channels, out, free_base, tree):
     """The ground outputs ``channels`` (`GROUND_OUTPUTS` indices) at ``times`` (s from the
     start) from fixed-step states, linear between the values at the steps around each time
-    (``joints``: the 2-D joint rows)."""
-    joints = joints.ravel()
-    work = np.zeros(body_work_size(n, seg))
-    torque = np.zeros(n)
-    before = np.empty(4)
-    after = np.empty(4)
-    last = states.shape[0] - 1
-    for k in range(times.shape[0]):
-        s = times[k] / step
-        i = min(int(s), last - 1)
-        u = s - i
-        ground_outputs(states[i], n, seg, joints, torque, work, before)
-        ground_outputs(states[i + 1], n, seg, joints, torque, work, after)
-        for r in range(channels.shape[0]):
-            c = channels[r]
-            out[r, k] = (1.0 - u) * before[c] + u * after[c]
+    (``joints``: the 2-D joint rows). ``free_base`` and ``tree``: the body's switches
+    (`body_switches`); with free_base None (no ground) nothing is compiled or done."""
+    if free_base is not None:
+        joints = joints.ravel()
+        work = np.zeros(body_work_size(n, seg))
+        torque = np.zeros(n)
+        before = np.empty(4)
+        after = np.empty(4)
+        last = states.shape[0] - 1
+        for k in range(times.shape[0]):
+            s = times[k] / step
+            i = min(int(s), last - 1)
+            u = s - i
+            ground_outputs(states[i], n, seg, joints, torque, work, before, tree)
+            ground_outputs(states[i + 1], n, seg, joints, torque, work, after, tree)
+            for r in range(channels.shape[0]):
+                c = channels[r]
+                out[r, k] = (1.0 - u) * before[c] + u * after[c]
 
 
 @njit(cache=True, error_model="numpy")
@@ -172,9 +175,11 @@ def fill_residual(theta, omega, target_theta, target_omega, weights, weight_velo
             i += 2
     if weight_effort > 0.0:
         w = math.sqrt(weight_effort) * scale
+        flat = profiles.ravel()
         for u in range(rests.shape[0]):
             for k in range(n_samples):
-                out[i] = w * max(activation(times[k], profiles[u]) - rests[u], 0.0)
+                out[i] = w * max(unit_excitation(times[k], flat, PROFILE_SIZE, u) - rests[u],
+                                 0.0)
                 i += 1
     for r in range(channel_values.shape[0]):
         w = channel_scales[r] * scale

@@ -249,7 +249,7 @@ class FitProblem:
         """Every unit's activation (units × target samples) under the parameter vector
         ``x``."""
         packed = self.model_for(x).pack(self.levels).activations
-        return np.array([[activation(t, row) for t in self.times] for row in packed])
+        return np.array([[activation(t, row, 0) for t in self.times] for row in packed])
 
     def mean_activations(self, x) -> dict[str, float]:
         """Each unit's mean activation over the target samples."""

@@ -96,7 +96,7 @@ class ActivationProfile:
         """a(t) at the times ``t`` (s), as an array."""
         packed = self.to_array(initial_level)
         t = np.asarray(t, dtype=float)
-        return np.array([activation(float(ti), packed) for ti in t.ravel()]).reshape(t.shape)
+        return np.array([activation(float(ti), packed, 0) for ti in t.ravel()]).reshape(t.shape)
 
 
 @njit(cache=True, error_model="numpy")

@@ -16,7 +16,8 @@ import math
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from ..errors import ModelError, check_range
 from .contact import (
@@ -242,7 +243,6 @@ def _free_base_terms(y, n, n_seg, seg, work):
             s = int(seg[s, SEG_PARENT_COLUMN])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
 def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     """Accelerations of the n coordinates of a planar tree of segments (docs/model.md §1, §7,
     §9), into work[n²:n²+n]; coordinates y[:n], their speeds y[n:2n].
@@ -276,17 +276,44 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     flat scratch of `body_work_size`, which holds the accelerations at the end, and from
     `contacts_start` on each contact's force and point (no output array: the solvers' step
     loops pay for every array argument).
+
+    Called from Python; compiled callers use `body_accelerations`, whose switches keep the
+    other bodies' code out of their compilation.
     """
-    serial = seg[0, SEG_SERIAL_COLUMN] != 0.0
-    if int(seg[0, SEG_COUNT_COLUMN]) == n:
-        if serial:
-            _fixed_chain(y, n, muscle_torque, seg, joints, work)
-        else:
-            _fixed_tree(y, n, muscle_torque, seg, joints, work)
-    elif serial:
-        _free_chain(y, n, muscle_torque, seg, joints, work)
-    else:
-        _free_tree(y, n, muscle_torque, seg, joints, work)
+    free_base, tree = body_switches(seg, n)[1:]
+    _BODIES[free_base is not None, tree is None](y, n, muscle_torque, seg, joints, work)
+
+
+def body_switches(seg, n) -> tuple:
+    """The switches (general_body, free_base, tree) of the packed body ``seg`` with n
+    coordinates, each True or None: two or more coordinates (the general mass-matrix solve,
+    else one segment on a fixed pivot), a free base, a tree (not a serial chain). None is a
+    type of its own to Numba: a compiled function given a None switch drops the code behind
+    ``if switch is not None`` when it compiles (`body_accelerations`)."""
+    def on(flag):
+        return True if flag else None
+
+    return (on(n > 1), on(int(seg[0, SEG_COUNT_COLUMN]) != n),
+            on(seg[0, SEG_SERIAL_COLUMN] == 0.0))
+
+
+def body_accelerations(y, n, muscle_torque, seg, joints, work, free_base, tree):
+    """`joint_accelerations` inside compiled code, for the body the switches name
+    (`body_switches`); see `_body_accelerations_for`."""
+
+
+@overload(body_accelerations, inline="always")
+def _body_accelerations_for(y, n, muscle_torque, seg, joints, work, free_base, tree):
+    """Call the compiled solve of the body the switches' types name (fixed or free base,
+    serial chain or tree) while compiling, so that a caller compiles and links that one
+    solve only, not all four behind run-time branches (a cold elbow fit compiled all four:
+    about 4 s)."""
+    solve = _BODIES[not isinstance(free_base, types.NoneType),
+                    isinstance(tree, types.NoneType)]
+
+    def call(y, n, muscle_torque, seg, joints, work, free_base, tree):
+        solve(y, n, muscle_torque, seg, joints, work)
+    return call
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -371,7 +398,7 @@ def tree_accelerations(y, n, nb, serial, muscle_torque, seg, joints, work):
 
 
 # The four bodies, each compiled once (and cached) for the callers outside the step loops
-# (`joint_accelerations`), rather than inlined four times into each of them.
+# (`joint_accelerations`, `body_accelerations`), rather than inlined into each of them.
 @njit(cache=True, error_model="numpy")
 def _fixed_chain(y, n, muscle_torque, seg, joints, work):
     tree_accelerations(y, n, 0, True, muscle_torque, seg, joints, work)
@@ -390,6 +417,11 @@ def _free_chain(y, n, muscle_torque, seg, joints, work):
 @njit(cache=True, error_model="numpy")
 def _free_tree(y, n, muscle_torque, seg, joints, work):
     tree_accelerations(y, n, 2, False, muscle_torque, seg, joints, work)
+
+
+#: The four compiled bodies by (free base, serial chain).
+_BODIES = {(False, True): _fixed_chain, (False, False): _fixed_tree,
+           (True, True): _free_chain, (True, False): _free_tree}
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -499,17 +531,17 @@ GROUND_OUTPUTS = ("grf_x", "grf_y", "com_x", "com_y")
 
 
 @njit(cache=True, error_model="numpy")
-def ground_outputs(y, n, seg, joints, muscle_torque, work, out):
+def ground_outputs(y, n, seg, joints, muscle_torque, work, out, tree):
     """The total ground reaction force and the centre of mass of a body on a free base at
     state ``y`` into out[0:4] (`GROUND_OUTPUTS`), for the fit's compiled residual:
 
         F = Σ_contacts F_c,    x_CoM = x_base + Σ_a B_a·u(φ_a) / m,   u(φ) = (sin φ, −cos φ)
 
     (B_a: first moment of segment a and everything distal to it about a's proximal joint,
-    the same as in the free base's rows of M). Runs `joint_accelerations` at ``y`` for the
+    the same as in the free base's rows of M). Runs `body_accelerations` at ``y`` for the
     contact forces and the trigonometry; ``muscle_torque`` (n, zeros) and ``work`` are
-    scratch."""
-    joint_accelerations(y, n, muscle_torque, seg, joints, work)
+    scratch; ``tree``: True for a tree, None for a serial chain (`body_switches`)."""
+    body_accelerations(y, n, muscle_torque, seg, joints, work, True, tree)
     n_seg = int(seg[0, SEG_COUNT_COLUMN])
     nb = n - n_seg
     sine = n * n + n

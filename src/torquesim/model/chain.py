@@ -921,7 +921,7 @@ class ChainModel:
             if self.base == "free" and j == 0:
                 continue  # the free base's joint: no units, nothing to hold
             q = q0[j]
-            passive = passive_torque(q, joint.endstop_array())
+            passive = passive_torque(q, joint.endstop_array(), 0)
             if gravity is None:  # one segment: the elbow's own arithmetic (docs/model.md §3)
                 needed = segments[0, SEG_GRAVITY] * math.sin(self.base_angle + q) - passive
             else:
@@ -995,7 +995,7 @@ def _rest_stretch(unit: Unit, q: float, level: float) -> float:
     k, d = p[K_SE], unit.direction
 
     def balance(s: float) -> float:
-        return k * s - a * torque_angle(q + d * s, p) * p[H_ISOMETRIC]
+        return k * s - a * torque_angle(q + d * s, p, 0) * p[H_ISOMETRIC]
 
     s_max = a * p[H_ISOMETRIC] / k  # T_θ ≤ 1 bounds the stretch
     from scipy.optimize import brentq
@@ -1030,7 +1030,7 @@ def _agonist_level(units, agonists, q: float, needed: float) -> float:
         unit = units[agonists[0]]
         p = unit.parameters.to_array()
         s = needed / unit.parameters.se_stiffness
-        return needed / (p[H_ISOMETRIC] * torque_angle(q + unit.direction * s, p))
+        return needed / (p[H_ISOMETRIC] * torque_angle(q + unit.direction * s, p, 0))
     return agonist_level([lambda a, u=units[i]: u.parameters.se_stiffness
                           * _rest_stretch(u, q, a) for i in agonists], needed)
 

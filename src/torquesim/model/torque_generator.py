@@ -152,8 +152,8 @@ class TorqueGeneratorUnit:
         p[C_CONC] = p[T_C] * (wmax + wc)
         p[OMEGA_E] = (tmax - t0) / (k * t0) * wmax * wc / (wmax + wc)
         p[E_ECC] = -(tmax - t0) * p[OMEGA_E]
-        p[H_ISOMETRIC] = ce_torque_velocity(0.0, p)
-        p[H_ECC_LIMIT] = ce_torque_velocity(-wmax, p)
+        p[H_ISOMETRIC] = ce_torque_velocity(0.0, p, 0)
+        p[H_ECC_LIMIT] = ce_torque_velocity(-wmax, p, 0)
         return p
 
 
@@ -174,7 +174,7 @@ def _check_monotone(p: np.ndarray) -> None:
         return
     wmax = p[OMEGA_MAX]
     grid = np.concatenate([np.linspace(-wmax, 0.0, 4001), np.linspace(0.0, wmax, 4001)[1:]])
-    values, slopes = _h_on_grid(grid, p)
+    values, slopes = _h_on_grid(grid, p, 0)
     slopes = slopes[:-1]
     if not (np.all(np.diff(values) < 0.0) and np.all(slopes < 0.0)):
         bad = grid[:-1][(np.diff(values) >= 0.0) | (slopes >= 0.0)][0]
@@ -192,13 +192,13 @@ def _check_monotone(p: np.ndarray) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def _h_on_grid(grid, p):
+def _h_on_grid(grid, p, o):
     """h(ω) and h'(ω) at every ω of ``grid`` (one compiled call instead of one per point)."""
-    values = np.empty_like(grid)
-    slopes = np.empty_like(grid)
+    values = np.empty(grid.size)
+    slopes = np.empty(grid.size)
     for i in range(grid.size):
-        values[i] = ce_torque_velocity(grid[i], p)
-        slopes[i] = ce_torque_velocity_slope(grid[i], p)
+        values[i] = ce_torque_velocity(grid[i], p, o)
+        slopes[i] = ce_torque_velocity_slope(grid[i], p, o)
     return values, slopes
 
 

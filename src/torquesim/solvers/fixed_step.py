@@ -169,14 +169,15 @@ def check_body_kind(joints, seg, general_body, free_base, tree):
     ``general_body``, and the packed body ``seg`` ``free_base`` and ``tree``.
 
     The loops take ``general_body=True`` for bodies of two or more coordinates (the general
-    mass-matrix solve: chains, trees, a free base) and leave it out for one segment on a
-    fixed base, where the acceleration is one division. Left out, it is a compile-time
-    constant and Numba removes the general branch from that compilation: the general solve's
-    loops over arrays cost reference counting even where they are not taken (measured: 14 %
-    of the elbow's run).
+    mass-matrix solve: chains, trees, a free base) and None for one segment on a fixed base,
+    where the acceleration is one division. None is a type of its own to Numba, so the
+    general branch (``if general_body is not None``) is removed from that compilation: the
+    elbow's loop neither compiles the general solve (a bool False is a run-time branch, and
+    was compiled: the elbow's monolithic loop took 9.6 s to compile with it, 4.6 s without)
+    nor pays its array reference counting where it is not taken (14 % of the elbow's run).
     """
     n = joints.shape[0]
-    if n > 1 and not general_body:
+    if n > 1 and general_body is None:
         raise ValueError("a body of two or more coordinates needs general_body=True")
     if (n != int(seg[0, SEG_COUNT_COLUMN])) != (free_base is not None):
         raise ValueError("free_base must be True exactly for a body on a free base")
@@ -214,7 +215,7 @@ def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, 
 
 @njit(cache=True, error_model="numpy")
 def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
-                   general_body=False, dynamics=None, free_base=None, tree=None):
+                   general_body=None, dynamics=None, free_base=None, tree=None):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
@@ -234,8 +235,12 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
     # CE velocities (rad/s) of stages 1-4 in this step and in the previous one, and of stage 4
     # two steps back: the history the predictions use (NaN: none yet).
     now = np.empty((4, nu))
-    seen = np.full((4, nu), np.nan)
-    seen4_before = np.full(nu, np.nan)
+    seen = np.empty((4, nu))
+    seen4_before = np.empty(nu)
+    for u in range(nu):  # loops, not np.full: one array builder less to compile (0.3 s cold)
+        seen4_before[u] = np.nan
+        for s in range(4):
+            seen[s, u] = np.nan
     levels = np.empty((3, nu))  # profile values e(t) at t, t + h/2, t + h
     torque = np.empty(n)
     work = np.empty(body_work_size(n, seg))
@@ -275,7 +280,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                     _record_stiffness(stats, t, h / tau, u)
             for j in range(n):
                 k[s, j] = stage[n + j]
-            if general_body:
+            if general_body is not None:
                 _general_accelerations(stage, n, torque, seg, joints, work, k, s, free_base,
                                        tree)
                 if free_base is not None:  # contacts exist only on a free base
@@ -321,7 +326,7 @@ def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free
             b[_TORQUE, j] = b[_TORQUE0, j] + fraction * b[_TORQUE_SLOPE, j] if s > 0 \
                 else b[_TORQUE0, j]
             b[_K1 + s, j] = b[_STAGE, n + j]
-        if general_body:
+        if general_body is not None:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
                                    free_base, tree)
             if free_base is not None:  # contacts exist only on a free base
@@ -478,7 +483,7 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
                     b[_K1 + s, i + 1] = level_rate
         for j in range(n):
             b[_K1 + s, j] = b[_STAGE, n + j]
-        if general_body:
+        if general_body is not None:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
                                    free_base, tree)
             if free_base is not None:  # contacts exist only on a free base
@@ -642,6 +647,11 @@ def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b
         _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dynamics)
 
 
+#: Where the free-base and the tree switches are in `step_loop_switches`' tuple (compiled
+#: callers pass them on to `body.body_accelerations` and the ground outputs).
+SWITCH_FREE_BASE, SWITCH_TREE = 9, 10
+
+
 def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
                        dynamics: bool = False, free_base: bool = False,
                        tree: bool = False) -> tuple:
@@ -696,7 +706,7 @@ def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned
                        dynamics, free_base, tree)
     if partitioned_one is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                        False, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
+                        None, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
                         dynamics, None, None)
     if partitioned_chain is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,

@@ -25,7 +25,12 @@ import numpy as np
 from numba import njit
 
 from ..model.activation import activation, activation_rate, activation_time_constant
-from ..model.body import body_work_size, joint_accelerations, single_segment_acceleration
+from ..model.body import (
+    body_accelerations,
+    body_switches,
+    body_work_size,
+    single_segment_acceleration,
+)
 from ..model.state import has_activation_state, unit_state
 from ..model.torque_generator import unit_ce_velocity_and_time_constant, unit_torque
 from ..model.unit_row import (
@@ -130,21 +135,28 @@ def joint_muscle_torques(q, x, units, n_units, out, n_joints):
         out[j] += unit_joint_torque(q[j], x[unit_state(n_joints, units, u)], units, u)
 
 
-@njit(cache=True, error_model="numpy")
 def chain_derivative(t, y, seg, joints, units, profiles):
     """dy/dt at time t (s) as a new array, for SciPy's solvers; takes the 2-D packed arrays of
-    `PackedChain`."""
+    `PackedChain` (`compiled_derivative` with the body's switches)."""
+    return compiled_derivative(t, y, seg, joints, units, profiles,
+                               *body_switches(seg, joints.shape[0]))
+
+
+@njit(cache=True, error_model="numpy")
+def compiled_derivative(t, y, seg, joints, units, profiles, general_body, free_base, tree):
+    """`chain_derivative` with the body's switches (`body_switches`), so that only that
+    body's solve is compiled."""
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     dy = np.empty(y.shape[0])
     torque = np.empty(n)
     joint_muscle_torques(y, y, units, nu, torque, n)
     for k in range(n):
         dy[k] = y[n + k]
-    if n == 1:
+    if general_body is None:
         dy[1] = single_segment_acceleration(y[0], torque[0], seg, joints)
     else:
         work = np.empty(body_work_size(n, seg))
-        joint_accelerations(y, n, torque, seg, joints, work)
+        body_accelerations(y, n, torque, seg, joints, work, free_base, tree)
         for k in range(n):  # a loop: a slice assignment compiles a shape check (1.6 s cold)
             dy[n + k] = work[n * n + k]
     for u in range(nu):

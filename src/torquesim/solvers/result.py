@@ -11,9 +11,10 @@ from numba import njit
 from ..model.body import (
     CONTACT_SLOTS,
     JOINT_ROW_SIZE,
+    body_accelerations,
+    body_switches,
     body_work_size,
     contacts_start,
-    joint_accelerations,
     passive_torque,
 )
 from ..model.chain import UNIT_ROW_SIZE, ChainModel, PackedChain
@@ -37,7 +38,7 @@ from .rates import (
 
 @njit(cache=True)
 def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joint_out,
-                       contact_out):
+                       contact_out, free_base, tree):
     """Per row of ``states`` (y): fill ``unit_out`` (rows × U × 5) with each unit's torque T
     (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s), CE time constant τ (s) and
     profile value e(t);
@@ -51,11 +52,12 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
     for i in range(time.shape[0]):
         y = states[i]
         joint_muscle_torques(y, y, units, nu, torque, n)
-        if n_contacts > 0:
-            joint_accelerations(y, n, torque, seg, joints, work)
-            for c in range(n_contacts):
-                for k in range(4):
-                    contact_out[i, c, k] = work[start + CONTACT_SLOTS * c + k]
+        if free_base is not None:
+            if n_contacts > 0:
+                body_accelerations(y, n, torque, seg, joints, work, free_base, tree)
+                for c in range(n_contacts):
+                    for k in range(4):
+                        contact_out[i, c, k] = work[start + CONTACT_SLOTS * c + k]
         for j in range(n):
             joint_out[i, j, 0] = torque[j]
             joint_out[i, j, 1] = passive_torque(y[j], joints, j * JOINT_ROW_SIZE)
@@ -259,12 +261,12 @@ class SimulationResult:
     def _derived(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per unit (T, a, ω_cc, τ, e), per joint (net muscle torque, end-stop torque) and
         per contact (F_x, F_y, x, y) over the run."""
-        nu, nb = self.model.n_units, self.model.n_base
+        nu, nb, nc = self.model.n_units, self.model.n_base, self.model.n_coordinates
         unit_out = np.empty((self.time.size, nu, 5))
-        joint_out = np.empty((self.time.size, self.model.n_coordinates, 2))
+        joint_out = np.empty((self.time.size, nc, 2))
         contact_out = np.zeros((self.time.size, len(self.model.contacts), 4))
         derived_quantities(self.time, self.states, *self.packed, unit_out, joint_out,
-                           contact_out)
+                           contact_out, *body_switches(self.packed.segments, nc)[1:])
         return unit_out, joint_out[:, nb:], contact_out
 
     def columns(self) -> dict[str, np.ndarray]:

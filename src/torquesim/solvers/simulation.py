@@ -9,11 +9,12 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import ModelError, SimulationError, check_range
+from ..model.body import body_switches
 from ..model.chain import ChainModel, as_chain
 from ..model.elbow import default_model
 from . import fixed_step as fs
 from .coupling import IMEX, Coupling
-from .rates import chain_derivative
+from .rates import compiled_derivative
 from .result import RunCost, SimulationResult, StabilityReport
 from .techniques import FIXED_STEP_METHODS, METHODS, SCIPY_METHODS, nominal_order
 
@@ -376,16 +377,18 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
     grid = np.arange(n_out + 1) * output_step
     grid[-1] = model.duration
     calls = [0]
+    body = body_switches(packed.segments, model.n_coordinates)
 
     def rhs(t, y):
         calls[0] += 1
         # contiguous: SciPy passes views, which would compile a second specialization
-        return chain_derivative(t, np.ascontiguousarray(y, dtype=float), *packed)
+        return compiled_derivative(t, np.ascontiguousarray(y, dtype=float), *packed, *body)
 
     states = np.full((grid.size, model.state_size), np.nan)
     states[0] = y0
     filled, steps, message = 1, 0, ""
-    chain_derivative(0.0, y0, *packed)  # compile outside the timing
+    rhs(0.0, y0)  # compile outside the timing
+    calls[0] = 0
     start = _time.perf_counter()
     with np.errstate(all="ignore"):
         import scipy.integrate

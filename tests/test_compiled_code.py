@@ -1,0 +1,74 @@
+"""What a run compiles: the elbow compiles none of the chains' or the ground's code, and every
+model function once (one signature), so that a first run on an empty Numba cache is not
+spent compiling code it never takes (the tutorial's first-run table). Checked in a fresh
+interpreter on an empty cache, where a function's signatures are exactly those compiled."""
+
+import inspect
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import textwrap
+
+import pytest
+
+from torquesim.solvers import fixed_step
+
+SCRIPT = textwrap.dedent("""
+    import json
+    import torquesim as ts
+    from torquesim.model import activation, body, torque_generator
+    from torquesim.solvers import fixed_step, rates, result
+
+    curl = ts.load_model("builtin:elbow-curl").replace(duration=0.3)
+    ts.simulate(curl, "monolithic", 1e-4).columns()
+    ts.simulate(curl, "reference", output_step=0.01).columns()
+
+    def signatures(module):
+        return {name: [[str(t) for t in s] for s in getattr(module, name).signatures]
+                for name in dir(module)
+                if hasattr(getattr(module, name), "signatures")
+                and getattr(module, name).__module__ == module.__name__}
+
+    print(json.dumps({m.__name__.rsplit(".", 1)[-1]: signatures(m) for m in
+                      (activation, body, torque_generator, fixed_step, rates, result)}))
+""")
+
+
+@pytest.fixture(scope="module")
+def compiled():
+    """{module: {function: [signature as a list of type names]}} after an elbow simulate
+    (monolithic, and the reference, each with its table) on an empty Numba cache (a function
+    loaded from the cache inside its caller's code would not show its signature)."""
+    with tempfile.TemporaryDirectory() as cache:
+        done = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
+                              check=True, env={**os.environ, "NUMBA_CACHE_DIR": cache})
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_the_elbow_compiles_no_chain_or_ground_code(compiled):
+    """The four general body solves (fixed or free base, chain or tree) and the ground's
+    outputs are for bodies of two or more coordinates: an elbow run must not compile them
+    (a cold elbow `simulate` and `fit` did, through branches decided at run time: 2x their
+    first-run time)."""
+    body = compiled["body"]
+    for name in ("_fixed_chain", "_fixed_tree", "_free_chain", "_free_tree", "ground_outputs",
+                 "contact_time_constant"):
+        assert body.get(name, []) == [], name
+    switch = list(inspect.signature(fixed_step.rk4_monolithic.py_func).parameters) \
+        .index("general_body")
+    assert compiled["fixed_step"]["rk4_monolithic"]
+    for signature in compiled["fixed_step"]["rk4_monolithic"]:
+        assert signature[switch] in ("none", "omitted(default=None)"), signature
+
+
+def test_every_model_function_is_compiled_once(compiled):
+    """Each torque-generator, activation and end-stop function is compiled for one
+    signature, its offset an int64 (a literal or an omitted offset compiles it again)."""
+    for module in ("torque_generator", "activation", "body"):
+        for name, signatures in compiled[module].items():
+            assert len(signatures) <= 1, (module, name, signatures)
+            for signature in signatures:
+                assert not any("Literal" in t or "omitted" in t for t in signature), \
+                    (module, name, signature)
