@@ -26,7 +26,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..model.activation import activation
-from ..model.body import body_work_size, joint_accelerations
+from ..model.body import (
+    body_switches,
+    body_work_size,
+    joint_accelerations,
+    single_segment_acceleration,
+)
 from ..model.chain import agonist_level
 from ..model.torque_generator import ce_torque_velocity, torque_angle
 from .objective import PROFILE_SIZE, pack_profile
@@ -41,19 +46,24 @@ FLIGHT_FORCE = 0.01
 FLIGHT_HEIGHT = 1.0e3
 
 
+def _accelerations(y, n, torque, seg, joints, work) -> np.ndarray:
+    """q̈ (n,) at the state ``y`` under the joint ``torque``: the one-segment division on a
+    fixed pivot (so that an elbow fit compiles no chain solve), else the general solve."""
+    if body_switches(seg, n)[0] is None:
+        return np.array([single_segment_acceleration(y[0], torque[0], seg, joints)])
+    joint_accelerations(y, n, torque, seg, joints, work)
+    return work[n * n:n * n + n].copy()
+
+
 def _torque_columns(y, n, actuated, seg, joints, work):
     """q̈₀ (the accelerations without muscle torque) and B's columns of the ``actuated``
     coordinates, (n,) and (n, len(actuated)), at the state ``y``."""
-    acc = slice(n * n, n * n + n)
-    zero = np.zeros(n)
-    joint_accelerations(y, n, zero, seg, joints, work)
-    free = work[acc].copy()
+    free = _accelerations(y, n, np.zeros(n), seg, joints, work)
     columns = np.empty((n, len(actuated)))
     for c, j in enumerate(actuated):
         unit = np.zeros(n)
         unit[j] = 1.0
-        joint_accelerations(y, n, unit, seg, joints, work)
-        columns[:, c] = work[acc] - free
+        columns[:, c] = _accelerations(y, n, unit, seg, joints, work) - free
     return free, columns
 
 
