@@ -214,3 +214,24 @@ def test_simulate_animates_the_motion_as_a_stick_figure(tmp_path, capsys):
     lines = segment_lines(model, [[0.0, 0.0]])
     assert lines[0, 0, 1] == pytest.approx([0.0, -model.segments[0].length])
     assert lines[0, 1, 0] == pytest.approx(lines[0, 0, 1])  # the forearm starts there
+
+
+def test_a_long_compile_reports_every_interval_until_done():
+    """While a kernel compiles, a line at every interval (a log is never silent for longer),
+    and none once it has a compiled signature."""
+    import time
+    from types import SimpleNamespace
+
+    from torquesim.cli import _report_compiling
+
+    kernel = SimpleNamespace(signatures=[])
+    lines = []
+    thread = _report_compiling((kernel,), interval=0.2, echo=lines.append)
+    time.sleep(0.7)
+    kernel.signatures.append("compiled")
+    thread.join(timeout=2.0)
+    assert not thread.is_alive()
+    assert len(lines) >= 2 and all(line.startswith("still compiling (") for line in lines)
+    count = len(lines)
+    time.sleep(0.5)
+    assert len(lines) == count

@@ -189,14 +189,48 @@ LARGE_RUN_STEPS = 2_000_000
 LARGE_TABLE_BYTES = 200e6
 
 
+#: While a command compiles, a line at least this often (s), so that a log is never silent
+#: for longer.
+COMPILE_REPORT_INTERVAL = 10.0
+
+
 def _announce_compiling(*kernels) -> None:
     """One line before the pause when the compiled ``kernels`` a command needs are not on
-    disk yet."""
+    disk yet, then `_report_compiling`."""
     from .solvers.fixed_step import compiled_on_disk
 
     if not compiled_on_disk(*kernels):
         click.echo("compiling the integrators with Numba (once per install, up to a minute; "
                    "later runs start in seconds) ...", err=True)
+        _report_compiling(kernels)
+
+
+def _report_compiling(kernels, interval: float = COMPILE_REPORT_INTERVAL, echo=None):
+    """Every ``interval`` s a line "still compiling (N s)" on stderr until one of the
+    ``kernels`` (Numba dispatchers) has a compiled signature in this process; from a daemon
+    thread, which the compiling leaves time to run. Returns the thread."""
+    import threading
+    import time
+
+    echo = echo or (lambda text: click.echo(text, err=True))
+    start = time.monotonic()
+    before = [len(kernel.signatures) for kernel in kernels]
+
+    def compiled() -> bool:
+        return any(len(k.signatures) > n for k, n in zip(kernels, before, strict=True))
+
+    def watch() -> None:
+        reported = 0
+        while not compiled():
+            time.sleep(min(0.25, interval / 4))
+            elapsed = time.monotonic() - start
+            if elapsed >= (reported + 1) * interval and not compiled():
+                reported = int(elapsed // interval)
+                echo(f"still compiling ({elapsed:.0f} s) ...")
+
+    thread = threading.Thread(target=watch, name="torquesim-compiling", daemon=True)
+    thread.start()
+    return thread
 
 
 def _announce_size(model, method, step, duration, out_path) -> None:
@@ -769,6 +803,10 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
         with engine as client:
             # The cluster's workers are forked before this process runs compiled parallel
             # code (the problem simulates its start): forking after OpenMP is unsafe.
+            if not quiet and client is None:
+                from .optimisation.population import simulate_population
+
+                _announce_compiling(simulate_population)
             problem = OptimiseProblem(model, goals, method, step, window, tuple(free), freeze,
                                       limits, robust, timing_error, robust_mode)
             state = None
