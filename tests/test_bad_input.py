@@ -2,6 +2,8 @@
 on the command line, a ModelError or TypeError in Python), and nothing is written or damaged.
 """
 
+from pathlib import Path
+
 import pytest
 
 import torquesim as ts
@@ -252,3 +254,23 @@ def test_numbers_in_messages_are_short():
     with pytest.raises(ts.ModelError) as info:
         ts.TorqueGeneratorUnit(**{**flexor.as_dict(), "se_stiffness": 10**300})
     assert "1e+300 is out of range" in str(info.value) and len(str(info.value)) < 120
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+@pytest.mark.parametrize("argv", [
+    ["simulate", "--out", "/proc/curl.csv"],
+    ["fit", "--out", "/proc/fit-out"],
+    ["compare", "--out", "/proc/compare-out"],
+    ["batch", "sweep", "--vary", "se_stiffness=100..200", "--out", "/proc/sweep-out"],
+])
+def test_an_output_folder_that_cannot_be_written_is_refused_before_any_work(capsys, argv):
+    """A folder that exists but takes no new file (permissions alone do not tell: /proc)
+    is refused at once, naming the option, not after the run."""
+    err = one_line(capsys, argv)
+    assert err.startswith("error: --out: cannot write in '/proc'")
+
+
+def test_an_unknown_model_name_lists_the_presets(capsys, tmp_path):
+    err = one_line(capsys, ["model", "elbow", "--out", str(tmp_path / "m.toml")])
+    assert "neither a built-in model nor a file" in err and "squat-jump" in err
+    assert not (tmp_path / "m.toml").exists()

@@ -39,13 +39,35 @@ TIME = TimeValue()
 
 
 def _check_output(path: str | None, suffixes, option: str) -> None:
+    """Refuse an output ``path`` before any work: unknown extension, or a folder that does not
+    exist or cannot be written in."""
     if path is None:
         return
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise ModelError(option, f"{path!r}: unknown extension; allowed {', '.join(suffixes)}")
-    if not (p.parent if str(p.parent) else Path(".")).is_dir():
-        raise ModelError(option, f"directory {str(p.parent)!r} does not exist")
+    _check_writable_folder(p.parent, option)
+
+
+def _check_out_folder(out: Path) -> None:
+    """An --out folder: it, or the folder it will be made in, can be written in."""
+    _check_writable_folder(out if out.is_dir() else out.parent, "--out")
+
+
+def _check_writable_folder(folder: Path, option: str) -> None:
+    """The folder an output goes into exists and a file can be created in it (tried with a
+    temporary file, removed at once: permissions alone do not tell, e.g. under /proc)."""
+    import tempfile
+
+    folder = folder if str(folder) else Path(".")
+    if not folder.is_dir():
+        raise ModelError(option, f"directory {str(folder)!r} does not exist")
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".torquesim-probe-"):
+            pass
+    except OSError as exc:
+        raise ModelError(option, f"cannot write in {str(folder)!r}: "
+                         f"{exc.strerror or exc}") from None
 
 
 CONTEXT = {"help_option_names": ["-h", "--help"]}
@@ -53,13 +75,16 @@ CONTEXT = {"help_option_names": ["-h", "--help"]}
 
 @click.group(context_settings=CONTEXT)
 @click.version_option(package_name="torquesim")
-def cli():
+@click.pass_context
+def cli(context):
     """torquesim: torque-driven simulation of planar chains (default: an elbow dumbbell
     curl) with Hill-type torque generators.
 
     Compares the partitioned and monolithic solution of the body and muscle equations.
     SI units throughout; angles in radians in files, degrees in summaries.
     """
+    if isinstance(context.obj, CompileReporter):
+        context.obj.listen()
 
 
 @cli.command(short_help="Simulate a model; print or write the motion.")
@@ -113,10 +138,6 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     fixed = method != "reference"
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
     _announce_size(model, method, step, duration, out_path)
-    from .solvers import fixed_step
-
-    if fixed:
-        _announce_compiling(fixed_step.run_step_loop)
     result = run(model, method, step, duration=duration, tolerance=check if fixed else None)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
@@ -192,45 +213,103 @@ LARGE_TABLE_BYTES = 200e6
 #: While a command compiles, a line at least this often (s), so that a log is never silent
 #: for longer.
 COMPILE_REPORT_INTERVAL = 10.0
+#: The one line said when a command starts compiling (only on an empty Numba cache).
+COMPILING_NOTICE = ("compiling the integrators with Numba (once per install, up to a minute; "
+                    "later runs start in seconds) ...")
 
 
-def _announce_compiling(*kernels) -> None:
-    """One line before the pause when the compiled ``kernels`` a command needs are not on
-    disk yet, then `_report_compiling`."""
-    from .solvers.fixed_step import compiled_on_disk
+class CompileReporter:
+    """Tells the user when Numba compiles: `COMPILING_NOTICE` on stderr when a command first
+    compiles (not before: bad input fails without it; nothing when every kernel is on disk),
+    then "still compiling (N s)" every ``interval`` s while that compiling goes on. It listens
+    to Numba's "numba:compile" events, which fire only for a compile (a cache miss), and
+    reports from a daemon thread, which the compiler leaves time to run. A context manager;
+    ``quiet`` says nothing."""
 
-    if not compiled_on_disk(*kernels):
-        click.echo("compiling the integrators with Numba (once per install, up to a minute; "
-                   "later runs start in seconds) ...", err=True)
-        _report_compiling(kernels)
+    def __init__(self, interval: float = COMPILE_REPORT_INTERVAL, echo=None,
+                 quiet: bool = False):
+        self.interval = interval
+        self.echo = echo or (lambda text: click.echo(text, err=True))
+        self.quiet = quiet
+        self.depth = 0  # nested compiles under way
+        self.burst_start = None  # when the compiles now under way began (monotonic s)
+        self.thread = None
+        self._closed = False
+        self._listener = None
+
+    def on_start(self, _event=None) -> None:
+        import time
+
+        self.depth += 1
+        if self.depth == 1:
+            self.burst_start = time.monotonic()
+            if self.thread is None and not self.quiet:
+                self.echo(COMPILING_NOTICE)
+                self.thread = self._start_watching()
+
+    def on_end(self, _event=None) -> None:
+        self.depth = max(self.depth - 1, 0)
+        if self.depth == 0:
+            self.burst_start = None
+
+    def _start_watching(self):
+        import threading
+        import time
+
+        def watch() -> None:
+            reported, burst = 0, None
+            while not self._closed:
+                time.sleep(min(0.25, self.interval / 4))
+                start = self.burst_start
+                if start is None:
+                    continue
+                if start != burst:
+                    reported, burst = 0, start
+                elapsed = time.monotonic() - start
+                if elapsed >= (reported + 1) * self.interval:
+                    reported = int(elapsed // self.interval)
+                    self.echo(f"still compiling ({elapsed:.0f} s) ...")
+
+        thread = threading.Thread(target=watch, name="torquesim-compiling", daemon=True)
+        thread.start()
+        return thread
+
+    def listen(self) -> None:
+        """Start listening to Numba (imports it: called when a command runs, so that
+        ``torquesim --help`` stays quick)."""
+        from numba.core import event
+
+        listener = self
+
+        class _Listener(event.Listener):
+            def on_start(self, event_):
+                listener.on_start(event_)
+
+            def on_end(self, event_):
+                listener.on_end(event_)
+
+        if self._listener is None:
+            self._listener = _Listener()
+            event.register("numba:compile", self._listener)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._closed = True
+        if self._listener is not None:
+            from numba.core import event
+
+            event.unregister("numba:compile", self._listener)
+            self._listener = None
 
 
-def _report_compiling(kernels, interval: float = COMPILE_REPORT_INTERVAL, echo=None):
-    """Every ``interval`` s a line "still compiling (N s)" on stderr until one of the
-    ``kernels`` (Numba dispatchers) has a compiled signature in this process; from a daemon
-    thread, which the compiling leaves time to run. Returns the thread."""
-    import threading
-    import time
-
-    echo = echo or (lambda text: click.echo(text, err=True))
-    start = time.monotonic()
-    before = [len(kernel.signatures) for kernel in kernels]
-
-    def compiled() -> bool:
-        return any(len(k.signatures) > n for k, n in zip(kernels, before, strict=True))
-
-    def watch() -> None:
-        reported = 0
-        while not compiled():
-            time.sleep(min(0.25, interval / 4))
-            elapsed = time.monotonic() - start
-            if elapsed >= (reported + 1) * interval and not compiled():
-                reported = int(elapsed // interval)
-                echo(f"still compiling ({elapsed:.0f} s) ...")
-
-    thread = threading.Thread(target=watch, name="torquesim-compiling", daemon=True)
-    thread.start()
-    return thread
+def _quiet_compiling(quiet: bool) -> None:
+    """A command's ``--quiet`` silences the `CompileReporter` too."""
+    context = click.get_current_context(silent=True)
+    reporter = context.find_root().obj if context is not None else None
+    if quiet and isinstance(reporter, CompileReporter):
+        reporter.quiet = True
 
 
 def _announce_size(model, method, step, duration, out_path) -> None:
@@ -264,8 +343,8 @@ def _announce_size(model, method, step, duration, out_path) -> None:
                    "unit's property curves (.png, .pdf, .svg).")
 def model(name, out_path, plot_path):
     """Write a model as an editable TOML file: a preset (elbow-curl, knee-extension,
-    arm-raise; builtin: prefix optional) or a checked, rewritten copy of a model file; or
-    draw it with --plot."""
+    arm-raise, squat-jump; builtin: prefix optional) or a checked, rewritten copy of a model
+    file; or draw it with --plot."""
     from .io.model_file import load_model, save_model
     from .model.presets import PREFIX, PRESETS
 
@@ -274,6 +353,9 @@ def model(name, out_path, plot_path):
                          "FILE.png")
     _check_output(out_path, (".toml",), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
+    if name not in PRESETS and not name.startswith(PREFIX) and not Path(name).exists():
+        raise ModelError("NAME", f"{name!r} is neither a built-in model nor a file; allowed: "
+                         f"{', '.join(PRESETS)} or a model file")
     source = PREFIX + name if name in PRESETS else name
     chain = load_model(source)
     if out_path:
@@ -374,6 +456,8 @@ def _parse_steps(text: str) -> tuple[float, ...]:
 def compare(model_path, steps, repeats, out_dir, vary, quiet):
     """Every technique over a range of steps against the reference: accuracy, order,
     stability and cost, and the verdict."""
+    _quiet_compiling(quiet)
+    _check_out_folder(Path(out_dir))
     from .io.model_file import load_model
     from .solvers.simulation import step_count
     from .study.compare import verdict, verdict_sentences
@@ -491,8 +575,7 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ModelError("--out", f"{out_dir!r} is a file; allowed: a directory")
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise ModelError("--out", f"directory {str(out.parent)!r} does not exist")
+    _check_out_folder(out)
     if resume and overwrite:
         raise ModelError("--overwrite", "contradicts --resume; allowed: one of them")
     if not resume and not overwrite and any((out / f).exists() for f in files):
@@ -573,6 +656,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
     re-simulated with the reference solver. Ctrl-C or SIGTERM writes the best so far and a
     checkpoint; --resume continues.
     """
+    _quiet_compiling(quiet)
     import signal
 
     import numpy as np
@@ -624,10 +708,6 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
                              "--out directory of an earlier fit")
         state = load_checkpoint(checkpoint, problem, settings)
     created = not out.exists()
-    if not quiet:
-        from .fitting.objective import residual_population
-
-        _announce_compiling(residual_population)
     stop = []
 
     def request_stop(signum, _frame):
@@ -744,6 +824,7 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
     parallel; start and optimum are re-simulated with the reference solver and compared.
     Ctrl-C or SIGTERM writes the best so far and a checkpoint; --resume continues.
     """
+    _quiet_compiling(quiet)
     import signal
 
     from .io.model_file import load_model
@@ -803,10 +884,6 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
         with engine as client:
             # The cluster's workers are forked before this process runs compiled parallel
             # code (the problem simulates its start): forking after OpenMP is unsafe.
-            if not quiet and client is None:
-                from .optimisation.population import simulate_population
-
-                _announce_compiling(simulate_population)
             problem = OptimiseProblem(model, goals, method, step, window, tuple(free), freeze,
                                       limits, robust, timing_error, robust_mode)
             state = None
@@ -914,6 +991,8 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
     settings); unfinished ones resume from their checkpoints. Exit code 1 if any target
     failed (its row in batch.csv says why), 130 on Ctrl-C with what finished on disk.
     """
+    _quiet_compiling(quiet)
+    _check_out_folder(Path(out_dir))
     from .batch import fit_many
 
     reporter, progress = _batch_progress(quiet, "fits")
@@ -976,6 +1055,8 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
     """Simulate the model over parameter distributions; write sweep.csv (one row per
     sample), percentile bands (sweep.png, sweep_percentiles.csv), rank correlations and
     sweep.html. Finished chunks are kept in OUT/chunks and skipped on a rerun."""
+    _quiet_compiling(quiet)
+    _check_out_folder(Path(out_dir))
     from .batch import sweep
 
     reporter, progress = _batch_progress(quiet, "chunks")
@@ -1037,7 +1118,9 @@ _explicit_defaults(cli)
 def main(argv=None) -> int:
     """Entry point: one-line errors, exit code 2 for bad input, 1 for a failed run."""
     try:
-        code = cli.main(args=argv, prog_name="torquesim", standalone_mode=False)
+        with CompileReporter() as reporter:
+            code = cli.main(args=argv, prog_name="torquesim", standalone_mode=False,
+                            obj=reporter)
     except click.exceptions.Abort:
         click.echo("aborted", err=True)
         return 130

@@ -717,15 +717,3 @@ def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned
 def new_stats() -> np.ndarray:
     """A zeroed stats array for the loops."""
     return np.zeros(STATS_SIZE)
-
-
-def compiled_on_disk(*kernels) -> bool:
-    """Whether the compiled ``kernels`` (Numba dispatchers) are in Numba's disk cache (else
-    their first run compiles them, once per install)."""
-    import os
-
-    try:
-        return all(os.path.exists(kernel._cache._cache_file._index_path)
-                   for kernel in kernels)
-    except AttributeError:  # another Numba: assume cached rather than say something wrong
-        return True
