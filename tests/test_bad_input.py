@@ -274,3 +274,23 @@ def test_an_unknown_model_name_lists_the_presets(capsys, tmp_path):
     err = one_line(capsys, ["model", "elbow", "--out", str(tmp_path / "m.toml")])
     assert "neither a built-in model nor a file" in err and "squat-jump" in err
     assert not (tmp_path / "m.toml").exists()
+
+
+@pytest.mark.parametrize("old, new, field", [
+    ("gravity = 9.81", "gravity = 0", "gravity"),
+    ("stiffness = 5000000.0", "stiffness = 1e-300", "joints.initial_angle"),
+])
+def test_a_body_that_cannot_stand_is_one_error_without_warnings(tmp_path, old, new, field):
+    """Without gravity, or on contacts too soft to hold the body, there is no standing start:
+    a ModelError naming the field, and no numerical warning from the search for one."""
+    import warnings
+
+    text = model_to_toml(ts.load_model("builtin:squat-jump"))
+    assert old in text
+    path = tmp_path / "m.toml"
+    path.write_text(text.replace(old, new, 1))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(ts.ModelError, match=f"^{field}: "):
+            ts.simulate(ts.load_model(path), "imex", 2.5e-4, duration=0.05)
+    assert [str(w.message) for w in caught] == []

@@ -418,6 +418,10 @@ class ChainModel:
         if self.base not in BASES:
             raise ModelError("base", f"{self.base!r}; allowed: {', '.join(BASES)}")
         check_range("gravity", self.gravity, 0.0, 100.0, unit="m/s^2")
+        if self.contacts and self.gravity == 0.0:
+            raise ModelError("gravity", "0 with ground contacts: no weight holds the body on "
+                             "the ground (and the ground forces are read per body weight); "
+                             "allowed (0, 100] m/s^2 for a model with [[contacts]]")
         check_range("base_angle", self.base_angle, -math.pi, math.pi, unit="rad")
         check_range("duration", self.duration, 0.0, 600.0, low_open=True, unit="s")
         n = len(self.segments)
@@ -879,8 +883,10 @@ class ChainModel:
         sink = max((weight / len(which) / c.stiffness) ** (1 / c.exponent)
                    for c in self.contacts)
         guess = [-where["points"][which, 1].min() - sink, q0[0]]
-        solution, info, ok, _ = fsolve(residual, guess, full_output=True, xtol=1e-13)
-        if ok != 1 or max(abs(v) for v in residual(solution)) > 1e-9:
+        with np.errstate(all="ignore"):  # a posture that cannot stand fails below, in words
+            solution, info, ok, _ = fsolve(residual, guess, full_output=True, xtol=1e-13)
+            unbalanced = max(abs(v) for v in residual(solution))
+        if ok != 1 or not unbalanced <= 1e-9:
             raise ModelError("joints.initial_angle", "no static equilibrium on the ground "
                              "found near this posture; allowed: a posture that can stand")
         where, normal = forces(solution)
