@@ -3,7 +3,7 @@ empty (each in a fresh temporary cache folder, NUMBA_CACHE_DIR), then the same c
 
     python benchmarks/bench_cold_start.py
     python benchmarks/bench_cold_start.py --baseline /path/to/older/checkout/src --repeats 3
-    python benchmarks/bench_cold_start.py --baseline SRC --baseline-label 4c8121d0 --write-docs
+    python benchmarks/bench_cold_start.py --repeats 2 --write-docs
 
 Prints each command's wall time (whole process: interpreter, imports, compilation, the run)
 and the load average before and after. Compilation is most of a cold start; the numbers move
@@ -11,8 +11,9 @@ with the machine's load, so compare them only within one run. With ``--baseline`
 commands also run on another source tree (put first on PYTHONPATH; e.g. a ``git worktree`` of
 an older commit), alternating with this one, and the ratio this/baseline is printed. With
 ``--repeats N`` every measurement is repeated N times, the trees interleaved, and the minimum
-kept (load only ever adds time). ``--write-docs`` writes the table into the generated block
-``cold-start`` of docs/tutorial.md (`scripts/docblocks.py`).
+kept (load only ever adds time). ``--write-docs`` writes this tree's table (not the
+baseline's) into the generated block ``cold-start`` of docs/tutorial.md
+(`scripts/docblocks.py`).
 """
 
 from __future__ import annotations
@@ -51,36 +52,27 @@ def cold_and_warm(args, src=None) -> tuple[float, float]:
         return run(args, cache, tmp, src), run(args, cache, tmp, src)
 
 
-def docs_block(rows, load: float, label: str | None, repeats: int) -> str:
-    """The measured table as the generated block ``cold-start``."""
-    lines = [f"Measured by `python benchmarks/bench_cold_start.py"
-             f"{' --baseline SRC' if label else ''} --repeats {repeats} --write-docs` "
-             f"({measured_on(load)}; the whole command, interpreter and imports included; "
-             f"the fastest of {repeats} interleaved repeats):", ""]
-    if label:
-        lines += [f"| first run | cold (empty Numba cache) | cold at {label} | ratio | warm |",
-                  "|---|---|---|---|---|"]
-        for name, cold, warm, base_cold in rows:
-            lines.append(f"| {name} | {cold:.1f} s | {base_cold:.1f} s | "
-                         f"{cold / base_cold:.2f} | {warm:.1f} s |")
-    else:
-        lines += ["| first run | cold (empty Numba cache) | warm |", "|---|---|---|"]
-        for name, cold, warm, _ in rows:
-            lines.append(f"| {name} | {cold:.1f} s | {warm:.1f} s |")
+def docs_block(rows, load: float, repeats: int) -> str:
+    """The measured table of this tree as the generated block ``cold-start`` (a comparison
+    with ``--baseline`` is printed, not written: the page describes this version)."""
+    lines = [f"Measured by `python benchmarks/bench_cold_start.py --repeats {repeats} "
+             f"--write-docs` ({measured_on(load)}; the whole command, interpreter and imports "
+             f"included; the fastest of {repeats} interleaved repeats):", "",
+             "| first run | cold (empty Numba cache) | warm |", "|---|---|---|"]
+    for name, cold, warm, _ in rows:
+        lines.append(f"| {name} | {cold:.1f} s | {warm:.1f} s |")
     return "\n".join(lines) + "\n"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--baseline", help="source folder of the code to compare with")
-    parser.add_argument("--baseline-label", help="what the baseline is (e.g. a commit)")
     parser.add_argument("--repeats", type=int, default=1,
                         help="interleaved repeats per measurement; the minimum is kept")
     parser.add_argument("--write-docs", action="store_true",
                         help="write the table into docs/tutorial.md (block cold-start)")
     options = parser.parse_args()
     baseline, repeats = options.baseline, max(1, options.repeats)
-    label = options.baseline_label or baseline
     load = os.getloadavg()[0]
     print(f"cores: {os.cpu_count()}; load average at start: {load:.2f}")
     rows = []
@@ -101,8 +93,7 @@ def main() -> None:
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
     if options.write_docs:
         write_blocks("docs/tutorial.md",
-                     {"cold-start": docs_block(rows, load, label if baseline else None,
-                                               repeats)})
+                     {"cold-start": docs_block(rows, load, repeats)})
 
 
 if __name__ == "__main__":

@@ -267,7 +267,8 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_any_work(caps
     """A folder that exists but takes no new file (permissions alone do not tell: /proc)
     is refused at once, naming the option, not after the run."""
     err = one_line(capsys, argv)
-    assert err.startswith("error: --out: cannot write in '/proc'")
+    assert err.startswith(f"error: --out: cannot write '{argv[-1]}': nothing can be created "
+                          "in '/proc'")
 
 
 def test_an_unknown_model_name_lists_the_presets(capsys, tmp_path):

@@ -3,6 +3,7 @@
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 import torquesim as ts
@@ -261,3 +262,21 @@ def test_a_long_compile_reports_every_interval_until_done():
         time.sleep(0.3)
         reporter.on_end()
         assert COMPILING_NOTICE not in lines[count:] and len(lines) > count
+
+
+def test_the_result_figure_draws_unit_torques_with_their_sign():
+    """The torque panel: each unit's torque at its joint with its sign (extensors below
+    zero), summing to the net torque drawn beside them; the optimisation figure draws the
+    same rows for two runs, one line style each."""
+    from torquesim.plots import plot_comparison, plot_result
+
+    model = ts.load_model("builtin:elbow-curl").replace(duration=0.5)
+    run = ts.simulate(model, "imex", 5e-3)
+    ax_torque = plot_result(run).axes[1]
+    lines = {line.get_label(): line.get_ydata() for line in ax_torque.get_lines()}
+    flexor, extensor = lines["elbow_flexor (+)"], lines["elbow_extensor (−)"]
+    assert (flexor >= 0).all() and (extensor <= 0).all() and extensor.min() < 0
+    assert np.allclose(flexor + extensor, lines["net"], atol=1e-9)
+    other = ts.simulate(model.replace(duration=0.5), "imex", 2.5e-3)
+    labels = [line.get_label() for line in plot_comparison(run, other).axes[1].get_lines()]
+    assert {"net, start", "net, optimum", "elbow_extensor (−), optimum"} <= set(labels)

@@ -46,17 +46,17 @@ def _check_output(path: str | None, suffixes, option: str) -> None:
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise ModelError(option, f"{path!r}: unknown extension; allowed {', '.join(suffixes)}")
-    _check_writable_folder(p.parent, option)
+    _check_writable_folder(p.parent, option, path)
 
 
 def _check_out_folder(out: Path) -> None:
     """An --out folder: it, or the folder it will be made in, can be written in."""
-    _check_writable_folder(out if out.is_dir() else out.parent, "--out")
+    _check_writable_folder(out if out.is_dir() else out.parent, "--out", str(out))
 
 
-def _check_writable_folder(folder: Path, option: str) -> None:
-    """The folder an output goes into exists and a file can be created in it (tried with a
-    temporary file, removed at once: permissions alone do not tell, e.g. under /proc)."""
+def _check_writable_folder(folder: Path, option: str, path: str) -> None:
+    """The folder an output ``path`` goes into exists and a file can be created in it (tried
+    with a temporary file, removed at once: permissions alone do not tell, e.g. /proc)."""
     import tempfile
 
     folder = folder if str(folder) else Path(".")
@@ -66,8 +66,8 @@ def _check_writable_folder(folder: Path, option: str) -> None:
         with tempfile.NamedTemporaryFile(dir=folder, prefix=".torquesim-probe-"):
             pass
     except OSError as exc:
-        raise ModelError(option, f"cannot write in {str(folder)!r}: "
-                         f"{exc.strerror or exc}") from None
+        raise ModelError(option, f"cannot write {path!r}: nothing can be created in "
+                         f"{str(folder)!r} ({exc.strerror or exc})") from None
 
 
 CONTEXT = {"help_option_names": ["-h", "--help"]}

@@ -32,44 +32,24 @@ def plot_result(result, *, target=None, channels=None):
         _channel_row(axes[n], cols, channels,
                      model.weight)
     for row, joint in enumerate(model.joints):
-        ax_angle, ax_torque, ax_act = axes[row][:3]
-        angle = np.degrees(cols[joint.coordinate])
-        ax_angle.plot(t, angle, color="k", label=f"simulated ({result.method})")
+        ax_angle = axes[row][0]
+        _joint_row(axes[row][:3], model, joint,
+                   [(f"simulated ({result.method})", cols, "-", 1.5)])
         if joint.name in targets:
             tt, goal = targets[joint.name]
             ax_angle.plot(tt, np.degrees(goal), ls=(0, (4, 3)), color="tab:red", lw=1.6,
                           label="target", zorder=3)
-            residual = np.interp(tt, t, angle) - np.degrees(goal)
+            residual = np.interp(tt, t, np.degrees(cols[joint.coordinate])) - np.degrees(goal)
             ax_res = axes[row][3]
             rms, worst = float(np.sqrt(np.mean(residual**2))), float(np.max(np.abs(residual)))
             ax_res.plot(tt, residual, color="tab:red")
             ax_res.axhline(0.0, color="grey", lw=0.8)
             ax_res.set_ylabel(f"{joint.name} residual (deg)")
             ax_res.set_title(f"RMS {rms:.3f}°, max {worst:.3f}°", fontsize="medium")
+            ax_res.grid(alpha=0.3)
         elif targets:
             axes[row][3].set_axis_off()
-        ax_angle.set_ylabel(f"{joint.coordinate} (deg)")
-        ax_angle.legend(loc="best", fontsize="small")
-        units = [u for u in model.units if u.joint == joint.name]
-        for u in units:
-            sign = "+" if u.direction == 1 else "−"
-            ax_torque.plot(t, u.direction * cols[f"torque_{u.name}"],
-                           label=f"{u.name} ({sign})")
-            ax_act.plot(t, cols[f"activation_{u.name}"], label=u.name)
-        ax_torque.plot(t, cols[f"torque_net_{joint.name}"], color="k", lw=1,
-                       label="net")
-        ax_torque.axhline(0.0, color="grey", lw=0.6)
-        ax_torque.set_ylabel(f"{joint.name} torque, flexion + (N·m)")
-        ax_torque.legend(loc="best", fontsize="small")
-        ax_act.set_ylim(0.0, 1.05)
-        ax_act.set_ylabel("activation (0–1)")
-        if units:
-            ax_act.legend(loc="best", fontsize="small")
-        else:  # a free base's joint: no units
-            ax_act.text(0.5, 0.5, f"no units at {joint.name}", ha="center", va="center",
-                        transform=ax_act.transAxes, color="grey")
-        for ax in axes[row]:
-            ax.grid(alpha=0.3)
+        _legends(axes[row][:3], "small")
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
     title = f"torquesim: {model.name}, {result.method}"
@@ -77,6 +57,46 @@ def plot_result(result, *, target=None, channels=None):
         title += f", h = {result.step * 1e3:g} ms"
     fig.suptitle(textwrap.fill(title, 80))
     return fig
+
+
+def _joint_row(axes, model, joint, runs) -> None:
+    """One joint's row of a result figure, for each of ``runs`` ((label, `columns()` of a
+    result, line style, line width)): the joint angle (deg), the net muscle torque and each
+    unit's torque at the joint with its sign (d·T: flexors +, extensors −; N·m, flexion +),
+    and the units' activations. Each unit keeps its colour across runs; the runs differ by
+    line style. `plot_result` (one run) and `plot_comparison` (two) draw their rows here."""
+    ax_angle, ax_torque, ax_act = axes
+    units = [u for u in model.units if u.joint == joint.name]
+    for label, cols, style, width in runs:
+        tag = f", {label}" if len(runs) > 1 else ""
+        t = cols["time"]
+        ax_angle.plot(t, np.degrees(cols[joint.coordinate]), color="k", ls=style, lw=width,
+                      label=label)
+        for i, u in enumerate(units):
+            sign = "+" if u.direction == 1 else "−"
+            ax_torque.plot(t, u.direction * cols[f"torque_{u.name}"], color=f"C{i}", ls=style,
+                           lw=width * 0.8, label=f"{u.name} ({sign}){tag}")
+            ax_act.plot(t, cols[f"activation_{u.name}"], color=f"C{i}", ls=style, lw=width,
+                        label=f"{u.name}{tag}")
+        ax_torque.plot(t, cols[f"torque_net_{joint.name}"], color="k", ls=style,
+                       lw=width * 0.7, label=f"net{tag}")
+    ax_angle.set_ylabel(f"{joint.coordinate} (deg)")
+    ax_torque.axhline(0.0, color="grey", lw=0.6)
+    ax_torque.set_ylabel(f"{joint.name} torque, flexion + (N·m)")
+    ax_act.set_ylim(0.0, 1.05)
+    ax_act.set_ylabel("activation (0–1)")
+    if not units:  # a free base's joint
+        ax_act.text(0.5, 0.5, f"no units at {joint.name}", ha="center", va="center",
+                    transform=ax_act.transAxes, color="grey")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+
+
+def _legends(axes, size: str) -> None:
+    """A legend on each of ``axes`` that has labelled lines."""
+    for ax in axes:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="best", fontsize=size)
 
 
 def plot_model(model):
@@ -378,33 +398,10 @@ def plot_comparison(start, optimum, *, title: str = "", poses: int = 8):
     runs = (("start", start, (0, (4, 3)), 1.3), ("optimum", optimum, "-", 1.6))
     columns = {label: run.columns() for label, run, _, _ in runs}
     for row, joint in enumerate(model.joints):
-        ax_angle, ax_torque, ax_act = axes[row]
-        units = [u for u in model.units if u.joint == joint.name]
-        for label, _run, style, width in runs:
-            cols = columns[label]
-            t = cols["time"]
-            ax_angle.plot(t, np.degrees(cols[joint.coordinate]), color="k", ls=style, lw=width,
-                          label=label)
-            ax_torque.plot(t, cols[f"torque_net_{joint.name}"], color="k", ls=style, lw=width,
-                           label=f"net, {label}")
-            for i, u in enumerate(units):
-                ax_torque.plot(t, u.direction * cols[f"torque_{u.name}"], color=f"C{i}",
-                               ls=style, lw=width * 0.8,
-                               label=f"{u.name} ({'+' if u.direction == 1 else '−'}), {label}")
-                ax_act.plot(t, cols[f"activation_{u.name}"], color=f"C{i}", ls=style, lw=width,
-                            label=f"{u.name}, {label}")
-        ax_angle.set_ylabel(f"{joint.coordinate} (deg)")
-        ax_torque.axhline(0.0, color="grey", lw=0.6)
-        ax_torque.set_ylabel(f"{joint.name} torque, flexion + (N·m)")
-        ax_act.set_ylim(0.0, 1.05)
-        ax_act.set_ylabel("activation (0–1)")
-        if not units:
-            ax_act.text(0.5, 0.5, f"no units at {joint.name}", ha="center", va="center",
-                        transform=ax_act.transAxes, color="grey")
-        for ax in (ax_angle, ax_torque, ax_act):
-            if ax.get_legend_handles_labels()[0]:
-                ax.legend(loc="best", fontsize="x-small")
-            ax.grid(alpha=0.3)
+        _joint_row(axes[row], model, joint,
+                   [(label, columns[label], style, width) for label, _, style, width in runs])
+        _legends(axes[row], "x-small")
+        for ax in axes[row]:
             ax.set_xlabel("time (s)")
     if ground:
         ax_grf, ax_com, ax_pose = axes[n]
