@@ -295,3 +295,15 @@ def test_a_body_that_cannot_stand_is_one_error_without_warnings(tmp_path, old, n
         with pytest.raises(ts.ModelError, match=f"^{field}: "):
             ts.simulate(ts.load_model(path), "imex", 2.5e-4, duration=0.05)
     assert [str(w.message) for w in caught] == []
+
+
+@pytest.mark.parametrize("text, says", [
+    ("target\n", "no targets below the header"),
+    ("file,model\nbuiltin:curl,builtin:elbow-curl\n", "needs a header with 'target'"),
+])
+def test_a_manifest_without_targets_says_which_part_is_missing(tmp_path, capsys, text, says):
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text(text)
+    err = one_line(capsys, ["batch", "fit", "--manifest", str(manifest), "--out",
+                            str(tmp_path / "out")])
+    assert says in err and not (tmp_path / "out").exists()

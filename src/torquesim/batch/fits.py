@@ -42,16 +42,21 @@ def expand_targets(targets, model: str = "builtin:elbow-curl", manifest=None) ->
         path = Path(manifest)
         try:
             with path.open(newline="", encoding="utf-8-sig") as fh:
-                rows = list(csv.DictReader(fh))
+                reader = csv.DictReader(fh)
+                rows = list(reader)
+                header = reader.fieldnames or []
         except OSError as exc:
             raise ModelError("--manifest", f"cannot read {str(path)!r}: {exc.strerror}") \
                 from None
         except (UnicodeDecodeError, csv.Error):
             raise ModelError("--manifest", f"{path.name} is not a UTF-8 CSV text file; "
                              "allowed: a CSV with a header target,model,column") from None
-        if not rows or "target" not in rows[0]:
+        if "target" not in header:
             raise ModelError("--manifest", f"{path.name}: needs a header with 'target' (and "
                              "optionally 'model', 'column')")
+        if not rows:
+            raise ModelError("--manifest", f"{path.name}: no targets below the header; "
+                             "allowed: one row per target")
         def resolve(spec: str) -> str:
             """Paths in the manifest are relative to it."""
             return (spec if spec.startswith("builtin:") or Path(spec).is_absolute()
