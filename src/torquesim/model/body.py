@@ -290,11 +290,19 @@ def body_switches(seg, n) -> tuple:
     else one segment on a fixed pivot), a free base, a tree (not a serial chain). None is a
     type of its own to Numba: a compiled function given a None switch drops the code behind
     ``if switch is not None`` when it compiles (`body_accelerations`)."""
-    def on(flag):
-        return True if flag else None
+    return (switch(n > 1), switch(int(seg[0, SEG_COUNT_COLUMN]) != n),
+            switch(seg[0, SEG_SERIAL_COLUMN] == 0.0))
 
-    return (on(n > 1), on(int(seg[0, SEG_COUNT_COLUMN]) != n),
-            on(seg[0, SEG_SERIAL_COLUMN] == 0.0))
+
+def switch(flag) -> bool | None:
+    """A compile-time switch of the compiled code: True when ``flag`` holds, else None."""
+    return True if flag else None
+
+
+def switched_body(free_base, tree) -> tuple[bool, bool]:
+    """(free base, serial chain) read off the Numba types of the ``free_base`` and ``tree``
+    switches while compiling (a None type: off)."""
+    return (not isinstance(free_base, types.NoneType), isinstance(tree, types.NoneType))
 
 
 def body_accelerations(y, n, muscle_torque, seg, joints, work, free_base, tree):
@@ -308,8 +316,7 @@ def _body_accelerations_for(y, n, muscle_torque, seg, joints, work, free_base, t
     serial chain or tree) while compiling, so that a caller compiles and links that one
     solve only, not all four behind run-time branches (a cold elbow fit compiled all four:
     about 4 s)."""
-    solve = _BODIES[not isinstance(free_base, types.NoneType),
-                    isinstance(tree, types.NoneType)]
+    solve = _BODIES[switched_body(free_base, tree)]
 
     def call(y, n, muscle_torque, seg, joints, work, free_base, tree):
         solve(y, n, muscle_torque, seg, joints, work)

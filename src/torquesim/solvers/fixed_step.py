@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, types
+from numba import njit
 from numba.extending import overload
 
 from ..model.activation import implicit_activation
@@ -34,6 +34,8 @@ from ..model.body import (
     body_work_size,
     contact_time_constant,
     single_segment_acceleration,
+    switch,
+    switched_body,
     tree_accelerations,
 )
 from ..model.state import has_activation_state, unit_state, unit_states_start
@@ -194,8 +196,8 @@ def _tree_solve_for_body(y, n, torque, seg, joints, work, free_base, tree):
     """Choose the solve by the switches' types while compiling, so that a loop types and
     compiles one copy of it (fixed or free base, serial chain or tree), not four behind
     constant branches (the same run time, a quarter of the compile time)."""
-    nb = 0 if isinstance(free_base, types.NoneType) else 2
-    serial = isinstance(tree, types.NoneType)
+    free, serial = switched_body(free_base, tree)
+    nb = 2 if free else 0
 
     def solve(y, n, torque, seg, joints, work, free_base, tree):
         tree_accelerations(y, n, nb, serial, torque, seg, joints, work)
@@ -668,16 +670,13 @@ def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
     is a type of its own to Numba, so a branch ``if switch is not None`` on a None switch is
     removed when compiling, and a run compiles only its own code (a fit one loop and one muscle
     solver, not all of them). The muscle and exchange pairs matter only to the partitioned loop."""
-    def on(flag):
-        return True if flag else None
-
     chain = n_coordinates > 1
     sdirk = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
     stage = not monolithic and int(coupling[ORDER]) == EVERY_STAGE
-    return (on(monolithic and not chain), on(monolithic and chain),
-            on(not monolithic and not chain), on(not monolithic and chain),
-            on(sdirk), on(not sdirk), on(stage), on(not stage), on(dynamics), on(free_base),
-            on(tree))
+    return (switch(monolithic and not chain), switch(monolithic and chain),
+            switch(not monolithic and not chain), switch(not monolithic and chain),
+            switch(sdirk), switch(not sdirk), switch(stage), switch(not stage),
+            switch(dynamics), switch(free_base), switch(tree))
 
 
 def model_step_loop(model, monolithic: bool, exchange) -> tuple:
