@@ -696,7 +696,10 @@ def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned
     `rk4_partitioned`, for one segment or a chain, and in the partitioned loop its muscle
     solver and exchange. Only the chosen code is compiled. (A dispatcher passed as an argument
     would choose as well, but Numba's disk cache misses such compilations in every new
-    process; an integer made literal compiles every branch once before it specialises.)"""
+    process; an integer made literal compiles every branch once before it specialises.)
+    Compiled callers (the fits' objectives) call it compiled; Python callers run its Python
+    code (``run_step_loop.py_func``), which calls the chosen loop's dispatcher directly, so
+    that the wrapper is not compiled around it (`torquesim.solvers.simulation`)."""
     if monolithic_one is not None:
         rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                        dynamics=dynamics)  # general_body left out: its branch not compiled
