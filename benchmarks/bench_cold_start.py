@@ -11,7 +11,9 @@ with the machine's load, so compare them only within one run. With ``--baseline`
 commands also run on another source tree (put first on PYTHONPATH; e.g. a ``git worktree`` of
 an older commit), alternating with this one, and the ratio this/baseline is printed. With
 ``--repeats N`` every measurement is repeated N times, the trees interleaved, and the minimum
-kept (load only ever adds time). ``--write-docs`` writes this tree's table (not the
+kept (load only ever adds time). ``--loop-only`` adds, for the default simulate, its time
+with every compiled function cached but the step loop, which the first run of a model and
+method compiles in any case. ``--write-docs`` writes this tree's table (not the
 baseline's) into the generated block ``cold-start`` of docs/tutorial.md
 (`scripts/docblocks.py`).
 """
@@ -52,6 +54,17 @@ def cold_and_warm(args, src=None) -> tuple[float, float]:
         return run(args, cache, tmp, src), run(args, cache, tmp, src)
 
 
+def loop_only(args) -> float:
+    """The command with every compiled function cached but the step loop (`rk4_monolithic`,
+    whose cache files are deleted after a first run): the least a cold start can cost while
+    the loop is compiled at the first run, whatever else is cut."""
+    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as tmp:
+        run(args, cache, tmp)
+        for path in Path(cache).rglob("*rk4_monolithic*"):
+            path.unlink()
+        return run(args, cache, tmp)
+
+
 def docs_block(rows, load: float, repeats: int) -> str:
     """The measured table of this tree as the generated block ``cold-start`` (a comparison
     with ``--baseline`` is printed, not written: the page describes this version)."""
@@ -69,6 +82,9 @@ def main() -> None:
     parser.add_argument("--baseline", help="source folder of the code to compare with")
     parser.add_argument("--repeats", type=int, default=1,
                         help="interleaved repeats per measurement; the minimum is kept")
+    parser.add_argument("--loop-only", action="store_true",
+                        help="also time the default simulate with only its step loop to "
+                             "compile (every other function cached)")
     parser.add_argument("--write-docs", action="store_true",
                         help="write the table into docs/tutorial.md (block cold-start)")
     options = parser.parse_args()
@@ -88,6 +104,8 @@ def main() -> None:
         if baseline:
             line += (f"   baseline cold {min(base_cold):6.1f} s"
                      f"   cold ratio {min(cold) / min(base_cold):.2f}")
+        if options.loop_only and args == ["simulate"]:
+            line += f"   loop only {min(loop_only(args) for _ in range(repeats)):5.1f} s"
         print(line, flush=True)
         rows.append((name, min(cold), min(warm), min(base_cold) if baseline else None))
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
