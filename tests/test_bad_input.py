@@ -232,14 +232,18 @@ def test_a_sweep_does_not_replace_another_sweep(tmp_path, capsys):
 
 
 def test_an_inaccurate_sweep_says_so_and_exits_1_unless_accepted(tmp_path, capsys):
-    """The arm raise at a 20 ms step: radians off in every row (0.2 exited 0, guard "ok")."""
+    """A tolerance no step down to 20 ms / 2⁵ meets (1e-6°): the samples are named, exit 1;
+    accepted, exit 0 (0.2 exited 0 on radians-off rows, guard "ok")."""
     argv = ["batch", "sweep", "--model", "builtin:arm-raise", "--vary",
             "shoulder.flexor.se_stiffness=uniform(400,500)", "--samples", "2", "--step",
-            "20ms", "--quiet"]
+            "20ms", "--tolerance", "1e-6", "--quiet"]
     assert main([*argv, "--out", str(tmp_path / "a")]) == 1
     err = capsys.readouterr().err
-    assert "2 of 2 samples are inaccurate or unstable" in err
+    assert "2 of 2 samples cannot be made accurate by halving the step 5 times (samples 0, 1;" \
+        in err and "\n" not in err.strip()
     assert main([*argv, "--out", str(tmp_path / "b"), "--accept-inaccurate"]) == 0
+    table = (tmp_path / "b" / "sweep.csv").read_text().splitlines()
+    assert "step_s" in table[0].split(",") and len(table) == 3
 
 
 def test_the_same_target_twice_is_fitted_once():

@@ -243,7 +243,6 @@ _FROZEN_RUNS = {
     "imex_5ms": dict(method="imex", step=5e-3),
     "partitioned_sdirk2_m2_1ms": dict(method="partitioned", step=1e-3, coupling=ts.Coupling(
         muscle_solver="sdirk2", muscle_substeps=2)),
-    "scipy_DOP853_1e-8": dict(method="scipy:DOP853", rtol=1e-8, atol=1e-11),
 }
 
 
@@ -260,10 +259,30 @@ def test_elbow_preset_reproduces_the_single_elbow_code(name):
     assert [run.cost.steps, run.cost.rhs_body, old_muscle] == _FROZEN[f"{name}/cost"].tolist()
 
 
-@pytest.mark.slow
-def test_elbow_reference_reproduces_the_single_elbow_code():
-    run = ts.simulate(ts.load_model("builtin:elbow-curl"), "reference")
-    assert np.max(np.abs(run.states[::10] - _FROZEN["reference/states"])) <= 1e-12
+@pytest.fixture(scope="module")
+def fine_fixed_step_curl():
+    """The default curl by monolithic RK4 at 25 µs: within 4e-9 rad of itself at 50 µs."""
+    return ts.simulate(ts.load_model("builtin:elbow-curl"), "monolithic", 2.5e-5, check=False)
+
+
+@pytest.mark.parametrize("run, bound", [
+    (dict(method="scipy:DOP853", rtol=1e-8, atol=1e-11), 1e-5),
+    (dict(method="reference"), 1e-7),
+])
+def test_adaptive_runs_meet_their_tolerance_against_a_fine_fixed_step_run(
+        fine_fixed_step_curl, run, bound):
+    """SciPy's adaptive runs promise an accuracy, not bits: their step sequence moves with the
+    library release and the CPU (DOP853 at rtol 1e-8 moved 3.7e-8 rad here and 1.05e-6 rad on
+    another machine from the 0.1 golden). So they are held to 1000·rtol of the angle and speed
+    of a fine fixed-step run (the model's kinks make the global error a few times the local
+    tolerance: measured 4e-8 and 4e-10 rad on SciPy 1.17); only our own fixed-step runs are
+    frozen bit for bit (above)."""
+    adaptive = ts.simulate(ts.load_model("builtin:elbow-curl"), check=False, **run)
+    fine = fine_fixed_step_curl
+    k = int(round((adaptive.time[1] - adaptive.time[0]) / (fine.time[1] - fine.time[0])))
+    assert np.allclose(adaptive.time, fine.time[::k], atol=1e-12, rtol=0)
+    error = np.abs(adaptive.states - fine.states[::k]).max(axis=0)
+    assert error[0] <= bound and error[1] <= 10 * bound, error[:2]
 
 
 def test_equilibrium_shares_the_load_between_two_agonists():

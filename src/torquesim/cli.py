@@ -11,6 +11,7 @@ from pathlib import Path
 import click
 
 from .errors import ModelError, SimulationError
+from .model.preset_names import preset_list
 from .solvers.techniques import FIT_METHODS, METHODS, TECHNIQUES
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -89,9 +90,8 @@ def cli(context):
 
 @cli.command(short_help="Simulate a model; print or write the motion.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
-              help="Model: a TOML file or a preset builtin:elbow-curl|knee-extension|arm-raise|"
-                   "squat-jump "
-                   "(see 'torquesim model').")
+              help=f"Model: a TOML file or a preset: {preset_list()} (see 'torquesim "
+                   "model').")
 @click.option("--method", type=click.Choice(METHODS),
               default="monolithic", show_default=True,
               help="monolithic: one RK4 on all equations; partitioned: each part its own RK4, "
@@ -342,9 +342,9 @@ def _announce_size(model, method, step, duration, out_path) -> None:
               help="Draw the model (segments, joints, loads, which units act where) and each "
                    "unit's property curves (.png, .pdf, .svg).")
 def model(name, out_path, plot_path):
-    """Write a model as an editable TOML file: a preset (elbow-curl, knee-extension,
-    arm-raise, squat-jump; builtin: prefix optional) or a checked, rewritten copy of a model
-    file; or draw it with --plot."""
+    """Write a model as an editable TOML file: a preset (NAME is one of the presets listed by
+    `torquesim simulate --help`; builtin: prefix optional) or a checked, rewritten copy of a
+    model file; or draw it with --plot."""
     from .io.model_file import load_model, save_model
     from .model.presets import PREFIX, PRESETS
 
@@ -435,9 +435,12 @@ def _parse_steps(text: str) -> tuple[float, ...]:
 
 @cli.command(short_help="The study: every technique, accuracy vs cost.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
-              help="Model TOML file or builtin:NAME preset.")
-@click.option("--steps", default="20,10,5,2,1,0.5,0.2,0.1,0.05", show_default=True,
-              help="Fixed steps to try, in ms, comma-separated; each must divide the duration.")
+              help=f"Model: a TOML file or a preset: {preset_list()}.")
+@click.option("--steps", default=None,
+              help="Fixed steps to try, in ms, comma-separated; each must divide the duration. "
+                   "Default: those of 20, 10, 5, 2, 1, 0.5, 0.2, 0.1, 0.05 that divide the "
+                   "model's duration (all nine on the presets but the squat jump, whose 0.55 s "
+                   "drops 20).")
 @click.option("--repeats", type=click.IntRange(1, 50), default=5, show_default=True,
               help="Runs per setting, interleaved round-robin over all settings; the minimum "
                    "wall time is reported with the spread (the ranking uses the modelled cost, "
@@ -460,11 +463,11 @@ def compare(model_path, steps, repeats, out_dir, vary, quiet):
     _check_out_folder(Path(out_dir))
     from .io.model_file import load_model
     from .solvers.simulation import step_count
-    from .study.compare import verdict, verdict_sentences
+    from .study.compare import default_steps, verdict, verdict_sentences
     from .study.outputs import write_study
 
     model = load_model(model_path)
-    values = _parse_steps(steps)
+    values = default_steps(model) if steps is None else _parse_steps(steps)
     for h in values:
         step_count(model.duration, h, "--steps")
 
@@ -588,7 +591,7 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
 @click.option("--target", "target_spec", default=None,
               help="Measured motion: a .csv (a time column and angle columns) or OpenSim "
                    ".mot/.sto (inverse kinematics: one column per coordinate), or a built-in "
-                   "motion builtin:curl|knee-extension|arm-raise|squat-jump. On a body on the "
+                   "motion (builtin:curl, or a preset's name: its own motion). On a body on the "
                    "ground, columns grf_x, grf_y (N), com_x, com_y (m) are scored too. "
                    "Default: the model preset's own (builtin:curl for the elbow).")
 @click.option("--column", "columns", multiple=True, metavar="JOINT=COLUMN",
@@ -600,8 +603,8 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
 @click.option("--angle-units", "--units", "units", type=click.Choice(["deg", "rad"]),
               help="Units of the target angles (CSV default deg; .mot/.sto: inDegrees).")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
-              help="Model: a TOML file or builtin:elbow-curl|knee-extension|arm-raise. Every "
-                   "unit's activation is fitted as 3 ramps (9 parameters per unit).")
+              help=f"Model: a TOML file or a preset: {preset_list()}. Every unit's activation "
+                   "is fitted as 3 ramps (9 parameters per unit).")
 @_search_options
 @click.option("--generations", type=click.IntRange(0, 100_000), default=300,
               show_default=True, help="global: differential-evolution generations.")
@@ -749,7 +752,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
 @cli.command(short_help="Optimise a performance: activation ramps for a goal.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
               help="Starting model: a TOML file (e.g. a fit's fitted_model.toml) or "
-                   "builtin:elbow-curl|knee-extension|arm-raise|squat-jump. Its activation "
+                   f"a preset: {preset_list()}. Its activation "
                    "ramps (3 per unit) are the start of the search.")
 @click.option("--maximise", "--maximize", "maximise", multiple=True, metavar="GOAL",
               help="A goal to maximise (repeatable): jump_height, com_speed_at_takeoff, "
@@ -973,7 +976,8 @@ def _batch_progress(quiet: bool, label: str):
               help="CSV with columns target,model,column (model and column optional) "
                    "instead of, or beside, TARGETS.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
-              help="Model for every target without one in the manifest.")
+              help="Model for every target without one in the manifest: a TOML file or a "
+                   f"preset: {preset_list()}.")
 @_search_options
 @click.option("--weight-effort", type=click.FloatRange(0.0, 1e6), default=0.0,
               show_default=True, help="Weight (deg² per activation²) of the effort term, as "
@@ -1019,7 +1023,7 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
 
 @batch.command("sweep", short_help="Simulate over parameter distributions.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
-              help="Model: a TOML file or builtin:elbow-curl|knee-extension|arm-raise.")
+              help=f"Model: a TOML file or a preset: {preset_list()}.")
 @click.option("--vary", multiple=True, required=True, metavar="PATH=KIND(...)",
               help="A model field and its distribution (repeatable): uniform(LOW,HIGH), "
                    "normal(MEAN,SD), lognormal(MEDIAN,SIGMA) or grid(LOW,HIGH,N); PATH as in "
@@ -1044,8 +1048,8 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
                                       "correlations, sweep.html and the finished chunks.")
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Each sample's max angle error is estimated (against a run at twice the "
-                   "step, half a run's work) and the sample marked inaccurate above this many "
-                   "degrees.")
+                   "step, half a run's work); a sample above this many degrees is run again "
+                   "at half the step (up to 5 times), and marked inaccurate if it still is.")
 @click.option("--accept-inaccurate", is_flag=True,
               help="Exit 0 even when some samples are inaccurate or unstable.")
 @click.option("--overwrite", is_flag=True, help="Replace another sweep held in --out.")
@@ -1058,6 +1062,7 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
     _quiet_compiling(quiet)
     _check_out_folder(Path(out_dir))
     from .batch import sweep
+    from .batch.sweep import MAX_REFINEMENTS
 
     reporter, progress = _batch_progress(quiet, "chunks")
     try:
@@ -1075,17 +1080,23 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
     reporter.close()
     counts = table["accuracy"].value_counts().to_dict()
     failed = counts.get("failed", 0)
-    doubtful = counts.get("inaccurate", 0) + counts.get("unstable", 0)
-    click.echo(f"{len(table)} samples: {counts.get('ok', 0)} accurate, "
-               f"{counts.get('inaccurate', 0)} inaccurate (estimated error above "
-               f"{tolerance:g}°), {counts.get('unstable', 0)} beyond the stability limit, "
-               f"{failed} failed; wrote {out_dir}/sweep.csv, sweep.png, sweep_percentiles.csv, "
-               "rank_correlations.csv, sweep.html")
-    if doubtful and not accept_inaccurate:
-        worst = table.loc[table["accuracy"].isin(["inaccurate", "unstable"]), "error"].iloc[0]
-        click.echo(f"error: {doubtful} of {len(table)} samples are inaccurate or unstable "
-                   f"(e.g. {worst.split(' Also: ')[0]}); use a smaller --step or --method imex, "
-                   "or --accept-inaccurate to accept them", err=True)
+    doubtful = table[table["accuracy"].isin(["inaccurate", "unstable"])]
+    refined = int(((table["step_s"] < step * (1 - 1e-9)) & (table["accuracy"] == "ok")).sum())
+    click.echo(f"{len(table)} samples: {counts.get('ok', 0)} accurate (estimated error within "
+               f"{tolerance:g}°; {refined} of them re-run at a halved step, as the step_s "
+               f"column gives), {counts.get('inaccurate', 0)} inaccurate and "
+               f"{counts.get('unstable', 0)} beyond the stability limit at "
+               f"{step / 2**MAX_REFINEMENTS * 1e3:.3g} ms, {failed} failed; wrote "
+               f"{out_dir}/sweep.csv, sweep.png, sweep_percentiles.csv, rank_correlations.csv, "
+               "sweep.html")
+    if len(doubtful) and not accept_inaccurate:
+        first = doubtful.iloc[0]
+        click.echo(f"error: {len(doubtful)} of {len(table)} samples cannot be made accurate "
+                   f"by halving the step {MAX_REFINEMENTS} times (samples "
+                   f"{', '.join(str(int(k)) for k in doubtful['sample'][:10])}"
+                   f"{', …' if len(doubtful) > 10 else ''}; sample {int(first['sample'])}: "
+                   f"{first['error'].split(' Also: ')[0]}); use --method imex or a larger "
+                   "--tolerance, or --accept-inaccurate to accept them", err=True)
         return 1
     return 1 if failed else 0
 

@@ -49,6 +49,17 @@ def shown(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def check_name(field: str, value) -> str:
+    """Return ``value`` or raise `ModelError` naming ``field``: a name that heads output
+    columns must be non-empty letters, digits and ``_`` (a space or a dash breaks the columns
+    of a ``.sto`` header and of a CSV read by name)."""
+    if not isinstance(value, str) or not value or not all(c.isalnum() or c == "_"
+                                                          for c in value):
+        raise ModelError(field, f"{shown(value)}: allowed a non-empty name of letters, digits "
+                         "and _ (it names output columns)")
+    return value
+
+
 def check_range(
     field: str,
     value: float,

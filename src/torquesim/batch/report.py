@@ -99,7 +99,7 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings,
     write_table(out / "sweep_percentiles.csv", bands)
     parameters = [d.path for d in distributions]
     outcomes = [c for c in outcome_columns
-                if c not in ("estimated_error_deg", "accuracy", "error")]
+                if c not in ("estimated_error_deg", "step_s", "accuracy", "error")]
     rho = rank_correlations(frame, parameters, outcomes)
     figure = plot_sweep(chain, histories, frame, parameters, rho)
     png_path = out / "sweep.png"
@@ -107,8 +107,11 @@ def write_sweep(out: Path, chain, frame, histories, distributions, settings,
     rows = [[p, *(float(rho[p][o]) for o in outcomes)] for p in parameters]
     write_rows(out / "rank_correlations.csv", rows, ["parameter", *outcomes])
     counts = frame["accuracy"].value_counts().to_dict()
+    refined = int(((frame["step_s"] < settings["step_s"] * (1 - 1e-9))
+                   & (frame["accuracy"] == "ok")).sum())
     body = [f"<p>{len(frame)} samples: {counts.get('ok', 0)} accurate (estimated max angle "
-            f"error within the tolerance), {counts.get('inaccurate', 0)} inaccurate, "
+            f"error within the tolerance; {refined} of them at a halved step, as the "
+            f"<code>step_s</code> column gives), {counts.get('inaccurate', 0)} inaccurate, "
             f"{counts.get('unstable', 0)} beyond the RK4 stability limit, "
             f"{counts.get('failed', 0)} failed (their errors and warnings are in sweep.csv). "
             "Rank correlations use the accurate samples only.</p>",

@@ -121,13 +121,18 @@ def outcome_columns(model: ChainModel) -> list[str]:
     for joint in model.joints:
         out += [f"peak_{joint.name}_deg", f"peak_{joint.name}_time_s",
                 f"final_{joint.name}_deg"]
-    return out + ["max_unit_torque_nm", "estimated_error_deg", "accuracy", "error"]
+    return out + ["max_unit_torque_nm", "estimated_error_deg", "step_s", "accuracy", "error"]
 
 
 #: A sweep row's ``accuracy``: ``ok``; ``unstable`` (beyond the RK4 stability limit);
 #: ``inaccurate`` (estimated max angle error above the tolerance, or a step too coarse for the
-#: activation); ``failed`` (no result; the error says why).
+#: activation); ``failed`` (no result; the error says why). ``unstable`` and ``inaccurate``
+#: are what is left after `MAX_REFINEMENTS` halvings of the step.
 ACCURACY_VERDICTS = ("ok", "unstable", "inaccurate", "failed")
+#: A sample found inaccurate or unstable is simulated again at half the step (as `simulate`'s
+#: advice), at most this many times (the sweep's step / 32): its row gives the step that met
+#: the tolerance.
+MAX_REFINEMENTS = 5
 
 
 def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, method: str,
@@ -135,16 +140,17 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
     """Simulate every row of ``values`` (a Dask task). Returns the outcome arrays, the angle
     histories (samples × joints × `HISTORY_POINTS`, deg, NaN for failed samples), each
     row's accuracy verdict (`ACCURACY_VERDICTS`; every run's max angle error is estimated
-    against a run at twice the step, `simulate`'s default
-    check, within ``tolerance`` rad) and the worker. A failing sample fills its own row with
-    its one-line error."""
+    against a run at twice the step, `simulate`'s default check, within ``tolerance`` rad; a
+    sample found inaccurate or unstable is run again at half the step, up to
+    `MAX_REFINEMENTS` times, and its row gives the step it was run at) and the worker. A
+    failing sample fills its own row with its one-line error."""
     from ..solvers.simulation import simulate
     from .engine import single_threaded, worker_name
 
     single_threaded()
     n = base.n_joints
     m = values.shape[0]
-    numbers = np.full((m, 3 * n + 2), np.nan)
+    numbers = np.full((m, 3 * n + 3), np.nan)
     accuracy = ["failed"] * m
     errors = [""] * m
     grid = np.linspace(0.0, base.duration, HISTORY_POINTS)
@@ -154,10 +160,18 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
             model = base
             for path, value in zip(paths, row, strict=True):
                 model = set_parameter(model, path, value)
-            result = simulate(model, method, step, check=False, advise=False,
-                              tolerance=tolerance)
-            if not result.success:
-                raise SimulationError(result.message)
+            h = step
+            for _ in range(MAX_REFINEMENTS + 1):
+                result = simulate(model, method, h, check=False, advise=False,
+                                  tolerance=tolerance)
+                if not result.success:
+                    raise SimulationError(result.message)
+                verdict = ("unstable" if result.stability is not None
+                           and result.stability.exceeded else
+                           "inaccurate" if result.message else "ok")
+                if verdict == "ok":
+                    break
+                h /= 2
         except (ModelError, SimulationError) as exc:
             errors[i] = str(exc).splitlines()[0]
             continue
@@ -166,14 +180,10 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
             peak = int(np.argmax(q[:, j]))
             numbers[i, 3 * j: 3 * j + 3] = q[peak, j], result.time[peak], q[-1, j]
             histories[i, j] = np.interp(grid, result.time, q[:, j])
-        numbers[i, -2] = max_unit_torque(model, result.states)
-        numbers[i, -1] = math.degrees(result.settings.get("estimated_error_rad", math.nan))
-        if result.stability is not None and result.stability.exceeded:
-            accuracy[i] = "unstable"
-        elif result.message:
-            accuracy[i] = "inaccurate"
-        else:
-            accuracy[i] = "ok"
+        numbers[i, -3] = max_unit_torque(model, result.states)
+        numbers[i, -2] = math.degrees(result.settings.get("estimated_error_rad", math.nan))
+        numbers[i, -1] = result.step
+        accuracy[i] = verdict
         errors[i] = result.message
     return {"numbers": numbers, "accuracy": accuracy, "errors": errors, "histories": histories,
             "worker": worker_name()}
@@ -195,7 +205,7 @@ def fingerprint(model_toml: str, values: np.ndarray, method: str, step: float, p
                 tolerance: float = DEFAULT_TOLERANCE) -> str:
     """Hash of what a finished chunk is valid for."""
     return hash_parts(model_toml, np.asarray(values, dtype=float),
-                      (method, step, list(paths), tolerance, "accuracy-verdict"))
+                      (method, step, list(paths), tolerance, "refined-step"))
 
 
 #: Work (samples × steps × units) below which a sweep runs in this process instead of starting

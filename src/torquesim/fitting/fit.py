@@ -40,6 +40,7 @@ SEARCHES = ("least-squares", "global")
 #: Difference step of the Jacobian (s for delays and durations, activation for levels):
 #: forward, backward where the upper bound is closer.
 DIFFERENCE_STEP = 1e-6
+JACOBIAN_SCHEME = "forward"
 #: Residual evaluations each least-squares start gets before the best one is refined: at
 #: least `SCREEN_EVALUATIONS`, and one per `SCREEN_PARAMETERS_PER_EVALUATION` free
 #: parameters (`screen_evaluations`).
@@ -424,12 +425,25 @@ class _Run:
         return np.array(points)
 
     def jacobian(self, z, at=None) -> np.ndarray:
-        """∂r/∂z by forward differences (backward where the upper bound is closer than the
-        difference step), len(z) simulations in parallel; ``at`` is r(z) when already known
-        (the least-squares search asks for the Jacobian where it has just evaluated r), else
-        it is simulated too. A column whose run fails is 0."""
+        """∂r/∂z by differences, in parallel: central (`JACOBIAN_SCHEME`, 2·len(z)
+        simulations; one-sided at a bound) or forward (len(z) simulations; backward where the
+        upper bound is closer than the difference step; ``at`` is r(z) when already known,
+        else it is simulated too). A column whose run fails is 0."""
         lo = np.array(self.space.lower)[self.free]
         hi = np.array(self.space.upper)[self.free]
+        if JACOBIAN_SCHEME == "central":
+            plus = np.minimum(z + DIFFERENCE_STEP, hi)
+            minus = np.maximum(z - DIFFERENCE_STEP, lo)
+            rows = np.empty((2 * z.size, self.space.size))
+            for i in range(z.size):
+                zp, zm = z.copy(), z.copy()
+                zp[i], zm[i] = plus[i], minus[i]
+                rows[2 * i] = self.space.full(zp, self.base)
+                rows[2 * i + 1] = self.space.full(zm, self.base)
+            residuals, failed = self.problem.residuals(rows)
+            jac = (residuals[0::2] - residuals[1::2]).T / (plus - minus)
+            jac[:, failed[0::2] | failed[1::2]] = 0.0
+            return jac
         moved = np.where(z + DIFFERENCE_STEP <= hi, z + DIFFERENCE_STEP, z - DIFFERENCE_STEP)
         moved = np.clip(moved, lo, hi)
         rows = np.empty((z.size + (at is None), self.space.size))

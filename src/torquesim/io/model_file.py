@@ -326,17 +326,19 @@ def model_from_dict(data: dict) -> ChainModel:
               if key in data}
     if "base" in data:
         kwargs["base"] = _text("base", data["base"])
-    model = ChainModel(name=_text("name", data.get("name", "model")), segments=tuple(segments),
-                       joints=tuple(joints), units=tuple(units), notes=tuple(notes),
-                       points=tuple(parts["points"]), contacts=tuple(parts["contacts"]),
-                       **kwargs)
-    for k, p in enumerate(model.parents):  # a joint at the default place needs that place
-        if p >= 0 and segments[k].parent_distance is None and "length" not in data[
-                "segments"][p]:
+    # Every field present before the whole-model checks (a missing length would otherwise
+    # show as a posture that cannot stand): a joint at the default place needs that place.
+    names = [seg.name for seg in segments]
+    for k, seg in enumerate(segments[1:], start=1):
+        p = names.index(seg.parent) if seg.parent in names[:k] else k - 1
+        if seg.parent_distance is None and "length" not in data["segments"][p]:
             raise ModelError(f"segments[{p}].length", "is missing: the distance to the next "
                              "joint, m; allowed [0, 10] (only a segment whose children give "
                              "their parent_distance may omit it)")
-    return model
+    return ChainModel(name=_text("name", data.get("name", "model")), segments=tuple(segments),
+                      joints=tuple(joints), units=tuple(units), notes=tuple(notes),
+                      points=tuple(parts["points"]), contacts=tuple(parts["contacts"]),
+                      **kwargs)
 
 
 def load_model(path) -> ChainModel:

@@ -1,29 +1,20 @@
-"""The model: planar chains of segments, torque generator units, activation profiles."""
+"""The model: planar chains of segments, torque generator units, activation profiles.
 
-from .activation import ActivationDynamics, ActivationProfile, Ramp
-from .body import BodyParameters
-from .chain import ChainModel, ChainStart, Joint, PackedChain, PointLoad, Segment, Unit, as_chain
-from .contact import GroundContact, Point
-from .elbow import ElbowModel, InitialState, default_model
-from .torque_generator import TorqueGeneratorUnit
+Names are imported on first use (PEP 562), so that the list of presets (`preset_names`) can
+be read without loading Numba.
+"""
 
-__all__ = [
-    "ActivationDynamics",
-    "ActivationProfile",
-    "BodyParameters",
-    "ChainModel",
-    "ChainStart",
-    "ElbowModel",
-    "GroundContact",
-    "InitialState",
-    "Joint",
-    "PackedChain",
-    "Point",
-    "PointLoad",
-    "Ramp",
-    "Segment",
-    "TorqueGeneratorUnit",
-    "Unit",
-    "as_chain",
-    "default_model",
-]
+from .._lazy import lazy_exports
+
+_EXPORTS = {
+    "ActivationDynamics": "activation", "ActivationProfile": "activation", "Ramp": "activation",
+    "BodyParameters": "body", "ChainModel": "chain", "ChainStart": "chain", "Joint": "chain",
+    "PackedChain": "chain", "PointLoad": "chain", "Segment": "chain", "Unit": "chain",
+    "as_chain": "chain", "GroundContact": "contact", "Point": "contact",
+    "ElbowModel": "elbow", "InitialState": "elbow", "default_model": "elbow",
+    "TorqueGeneratorUnit": "torque_generator",
+}
+
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)
+
+__all__ = sorted(_EXPORTS)

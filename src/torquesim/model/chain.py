@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ModelError, check_range
+from ..errors import ModelError, check_name, check_range
 from .activation import ActivationDynamics, ActivationProfile
 from .body import (
     ENDSTOP_HIGH,
@@ -85,6 +85,11 @@ SEG_INERTIA, SEG_MOMENT, SEG_GRAVITY = SEG_INERTIA_COLUMN, SEG_MOMENT_COLUMN, SE
 BASES = ("fixed", "free")
 #: Coordinates of a free base, m: the first segment's proximal point.
 BASE_COORDINATES = ("base_x", "base_y")
+#: Output columns the model itself names (the time, the free base, the centre of mass, the total
+#: ground force and its centre of pressure): no joint, unit, point or contact may name a column
+#: so, whether or not this model has them (`ChainModel.output_columns`).
+RESERVED_COLUMNS = ("time", *BASE_COORDINATES, *(f"{c}_speed" for c in BASE_COORDINATES),
+                    "com_x", "com_y", "com_speed_x", "com_speed_y", "grf_x", "grf_y", "cop_x")
 #: Speed limit of a free base's coordinates, m/s (faster is a numerical failure).
 BASE_SPEED_LIMIT = 100.0
 JOINT_ARRAY_SIZE = JOINT_ROW_SIZE  # end stops, zero offset, speed limit (model.body)
@@ -96,14 +101,6 @@ SPEED_LIMIT_FACTOR = 10.0
 #: Upper bounds of body parameters: far beyond any human segment, finite so that no value can
 #: overflow the mechanics (kg, m, kg·m²).
 MAX_MASS, MAX_LENGTH, MAX_INERTIA = 1000.0, 10.0, 1.0e4
-
-
-def _check_name(field_name: str, value) -> str:
-    if not isinstance(value, str) or not value or not all(c.isalnum() or c == "_"
-                                                          for c in value):
-        raise ModelError(field_name, f"{value!r}: allowed a non-empty name of letters, digits "
-                         "and _ (it names output columns)")
-    return value
 
 
 @dataclass(frozen=True)
@@ -127,7 +124,7 @@ class PointLoad:
     inertia: float = 0.0
 
     def __post_init__(self) -> None:
-        _check_name("name", self.name)
+        check_name("name", self.name)
         check_range("mass", self.mass, 0.0, MAX_MASS, unit="kg")
         check_range("distance", self.distance, 0.0, MAX_LENGTH, unit="m")
         check_range("inertia", self.inertia, 0.0, MAX_INERTIA, unit="kg·m^2")
@@ -169,7 +166,7 @@ class Segment:
     parent_distance: float | None = None
 
     def __post_init__(self) -> None:
-        _check_name("name", self.name)
+        check_name("name", self.name)
         m = check_range("mass", self.mass, 0.0, MAX_MASS, low_open=True, unit="kg")
         c = check_range("com_distance", self.com_distance, 0.0, MAX_LENGTH, unit="m")
         inertia = check_range("inertia_about_joint", self.inertia_about_joint, 0.0, MAX_INERTIA,
@@ -255,7 +252,7 @@ class Joint:
     coordinate: str = ""
 
     def __post_init__(self) -> None:
-        _check_name("name", self.name)
+        check_name("name", self.name)
         check_range("initial_angle", self.initial_angle, -math.pi, math.pi, unit="rad")
         check_range("endstop_torque", self.endstop_torque, 0.0, 1e5, unit="N·m")
         check_range("endstop_angle_scale", self.endstop_angle_scale, 0.0, low_open=True,
@@ -269,7 +266,7 @@ class Joint:
                              f"{hi!r} must exceed endstop_lower_angle = {lo!r} rad")
         if not self.coordinate:
             object.__setattr__(self, "coordinate", f"{self.name}_flexion")
-        _check_name("coordinate", self.coordinate)
+        check_name("coordinate", self.coordinate)
         if self.coordinate == "time" or self.coordinate.startswith(
                 ("torque_", "activation_", "excitation_", "omega_cc_", "theta_cc_")):
             raise ModelError("coordinate", f"{self.coordinate!r} would clash with another "
@@ -318,8 +315,8 @@ class Unit:
     activation_dynamics: ActivationDynamics | None = None
 
     def __post_init__(self) -> None:
-        _check_name("name", self.name)
-        _check_name("joint", self.joint)
+        check_name("name", self.name)
+        check_name("joint", self.joint)
         if isinstance(self.direction, bool) or self.direction not in (FLEXOR, EXTENSOR):
             raise ModelError("direction", f"{self.direction!r}; allowed +1 (flexor) or -1 "
                              "(extensor)")
@@ -411,7 +408,7 @@ class ChainModel:
     contacts: tuple[GroundContact, ...] = ()
 
     def __post_init__(self) -> None:
-        _check_name("name", self.name.replace("-", "_") if isinstance(self.name, str)
+        check_name("name", self.name.replace("-", "_") if isinstance(self.name, str)
                     else self.name)
         for key in ("segments", "joints", "units", "notes", "points", "contacts"):
             object.__setattr__(self, key, tuple(getattr(self, key)))
@@ -462,6 +459,7 @@ class ChainModel:
             if joint.name != free_joint and not any(u.joint == joint.name for u in self.units):
                 raise ModelError(f"joints.{joint.name}", "has no torque generator unit; "
                                  "allowed: at least one unit per joint")
+        self._check_output_names()
         self.initial_state()  # raises if the start cannot be held
 
     def _check_tree(self) -> None:
@@ -602,6 +600,58 @@ class ChainModel:
                 own.append(f"activation_state_{unit.name}")
         coordinates = (*BASE_COORDINATES[:self.n_base], *(j.coordinate for j in self.joints))
         return (*coordinates, *(f"{c}_speed" for c in coordinates), *own)
+
+    def output_columns(self) -> dict[str, str]:
+        """Every column of the output table (`SimulationResult.columns`) in table order, each
+        with the model field that names it (``""`` for the model's own columns,
+        `RESERVED_COLUMNS`)."""
+        return dict(self._output_column_pairs())
+
+    def _output_column_pairs(self) -> list[tuple[str, str]]:
+        units = [(f"units[{i}].name", u.name) for i, u in enumerate(self.units)]
+        dynamic = [pair for pair, u in zip(units, self.units, strict=True)
+                   if u.activation_dynamics is not None]
+        coordinates = [("", c) for c in BASE_COORDINATES[:self.n_base]] + [
+            (f"joints[{j}].coordinate", joint.coordinate) for j, joint in enumerate(self.joints)]
+        out = [("time", "")]
+        out += [(c, field) for field, c in coordinates]
+        out += [(f"{c}_speed", field) for field, c in coordinates]
+        for field, name in units:
+            out.append((f"theta_cc_{name}", field))
+            if (field, name) in dynamic:
+                out.append((f"activation_state_{name}", field))
+        out += [(f"torque_{name}", field) for field, name in units]
+        for j, joint in enumerate(self.joints):
+            out += [(f"torque_{kind}_{joint.name}", f"joints[{j}].name")
+                    for kind in ("net", "passive")]
+        out += [(f"activation_{name}", field) for field, name in units]
+        out += [(f"omega_cc_{name}", field) for field, name in units]
+        out += [(f"excitation_{name}", field) for field, name in dynamic]
+        if self.points or self.base == "free":
+            for i, point in enumerate(self.points):
+                out += [(f"{point.name}_{axis}", f"points[{i}].name") for axis in "xy"]
+            out += [(name, "") for name in ("com_x", "com_y", "com_speed_x", "com_speed_y")]
+        if self.contacts:
+            for i, contact in enumerate(self.contacts):
+                out += [(f"grf_{axis}_{contact.point}", f"contacts[{i}].point")
+                        for axis in "xy"]
+            out += [(name, "") for name in ("grf_x", "grf_y", "cop_x")]
+        return out
+
+    def _check_output_names(self) -> None:
+        """Refuse a name whose output column is reserved (`RESERVED_COLUMNS`) or another
+        field's: the table would silently overwrite one with the other."""
+        owner = dict.fromkeys(RESERVED_COLUMNS, "")
+        for column, field in self._output_column_pairs():
+            if not field:
+                continue
+            if column in owner:
+                other = owner[column]
+                clash = (f"the model's own (reserved: {', '.join(RESERVED_COLUMNS)})"
+                         if not other else f"also named by {other}")
+                raise ModelError(field, f"gives the output column {column!r}, {clash}; "
+                                 "allowed: a name whose output columns are its own")
+            owner[column] = field
 
     def replace(self, **changes) -> ChainModel:
         """A copy with some fields changed (validated again)."""

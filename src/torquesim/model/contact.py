@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from numba import njit
 
-from ..errors import ModelError, check_range
+from ..errors import check_name, check_range
 
 #: Columns of a packed contact row (`ChainModel.segment_array`, after the segment rows).
 (CONTACT_SEGMENT, CONTACT_DISTANCE, CONTACT_OFFSET, CONTACT_STIFFNESS, CONTACT_EXPONENT,
@@ -49,6 +49,8 @@ class Point:
     offset: float = 0.0
 
     def __post_init__(self) -> None:
+        check_name("name", self.name)
+        check_name("segment", self.segment)
         check_range("distance", self.distance, -10.0, 10.0, unit="m")
         check_range("offset", self.offset, -10.0, 10.0, unit="m")
 
@@ -93,8 +95,7 @@ class GroundContact:
         check_range("damping", self.damping, 0.0, 100.0, unit="s/m")
         check_range("friction", self.friction, 0.0, 5.0)
         check_range("slip_speed", self.slip_speed, 0.0, 1.0, low_open=True, unit="m/s")
-        if not isinstance(self.point, str) or not self.point:
-            raise ModelError("point", "must name a point")
+        check_name("point", self.point)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -17,9 +17,9 @@ from .activation import ActivationProfile, Ramp
 from .chain import ChainModel, Joint, PointLoad, Segment, Unit
 from .contact import GroundContact, Point
 from .elbow import ElbowModel
+from .preset_names import PREFIX, PRESET_NAMES
 from .torque_generator import TorqueGeneratorUnit
 
-PREFIX = "builtin:"
 BODY_MASS = 73.0  # kg, de Leva's reference male
 
 
@@ -200,15 +200,12 @@ def squat_jump() -> ChainModel:
             "Ground contacts at toe and heel: Hunt-Crossley k = 5e6 N/m^1.5, n = 1.5, c = 1 s/m, "
             "regularised Coulomb friction mu = 0.8, slip speed 0.1 m/s (est.).",
             "Extensors on from the static squat (knee and hip at 50 ms, ankle at 100 ms, 120 "
-            "ms ramps to 1) and off again after 150 ms at full level.",))
+            "ms ramps to 1), held at full level for 100 ms (knee, hip) or 50 ms (ankle), then "
+            "off in 100 ms.",))
 
 
-PRESETS: dict[str, Callable[[], ChainModel]] = {
-    "elbow-curl": elbow_curl,
-    "knee-extension": knee_extension,
-    "arm-raise": arm_raise,
-    "squat-jump": squat_jump,
-}
+PRESETS: dict[str, Callable[[], ChainModel]] = dict(zip(
+    PRESET_NAMES, (elbow_curl, knee_extension, arm_raise, squat_jump), strict=True))
 
 
 def is_preset(spec) -> bool:

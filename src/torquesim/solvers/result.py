@@ -284,42 +284,26 @@ class SimulationResult:
         ``cop_x`` (m; NaN in flight)."""
         unit_out, joint_out, contact_out = self._derived()
         m = self.model
-        cols = {"time": self.time}
-        for name, values in zip(m.state_names(), self.states.T, strict=True):
-            cols[name] = values
-        for u, unit in enumerate(m.units):
-            cols[f"torque_{unit.name}"] = unit_out[:, u, 0]
-        for j, joint in enumerate(m.joints):
-            cols[f"torque_net_{joint.name}"] = joint_out[:, j, 0]
-            cols[f"torque_passive_{joint.name}"] = joint_out[:, j, 1]
-        for u, unit in enumerate(m.units):
-            cols[f"activation_{unit.name}"] = unit_out[:, u, 1]
-        for u, unit in enumerate(m.units):
-            cols[f"omega_cc_{unit.name}"] = unit_out[:, u, 2]
-        for unit in m.units:
-            if unit.activation_dynamics is not None:
-                cols[f"excitation_{unit.name}"] = unit_out[:, m.unit_index(unit.name), 4]
+        values = [self.time, *self.states.T, *unit_out[:, :, 0].T]
+        for j in range(m.n_joints):
+            values += [joint_out[:, j, 0], joint_out[:, j, 1]]
+        values += [*unit_out[:, :, 1].T, *unit_out[:, :, 2].T]
+        values += [unit_out[:, u, 4] for u, unit in enumerate(m.units)
+                   if unit.activation_dynamics is not None]
         if m.points or m.base == "free":
             where = self.kinematics()
-            for i, point in enumerate(m.points):
-                cols[f"{point.name}_x"] = where["points"][:, i, 0]
-                cols[f"{point.name}_y"] = where["points"][:, i, 1]
-            for axis, name in enumerate("xy"):
-                cols[f"com_{name}"] = where["com"][:, axis]
-            for axis, name in enumerate("xy"):
-                cols[f"com_speed_{name}"] = where["com_velocity"][:, axis]
+            for i in range(len(m.points)):
+                values += [where["points"][:, i, 0], where["points"][:, i, 1]]
+            values += [*where["com"].T, *where["com_velocity"].T]
         if m.contacts:
-            for c, contact in enumerate(m.contacts):
-                cols[f"grf_x_{contact.point}"] = contact_out[:, c, 0]
-                cols[f"grf_y_{contact.point}"] = contact_out[:, c, 1]
+            for c in range(len(m.contacts)):
+                values += [contact_out[:, c, 0], contact_out[:, c, 1]]
             total = contact_out[:, :, 1].sum(axis=1)
-            cols["grf_x"] = contact_out[:, :, 0].sum(axis=1)
-            cols["grf_y"] = total
             with np.errstate(invalid="ignore", divide="ignore"):
-                cols["cop_x"] = np.where(total > 0, (contact_out[:, :, 1]
-                                                     * contact_out[:, :, 2]).sum(axis=1)
-                                         / total, np.nan)
-        return cols
+                pressure = np.where(total > 0, (contact_out[:, :, 1] * contact_out[:, :, 2])
+                                    .sum(axis=1) / total, np.nan)
+            values += [contact_out[:, :, 0].sum(axis=1), total, pressure]
+        return dict(zip(m.output_columns(), values, strict=True))
 
     def ground_events(self) -> GroundEvents | None:
         """Take-off, landing and jump height of a body on the ground (None without contacts):

@@ -21,6 +21,8 @@ from ..solvers.simulation import step_count
 from ..solvers.techniques import Technique, study_techniques
 
 DEFAULT_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.2e-3, 0.1e-3, 0.05e-3)
+#: A default step list keeps at least this many steps (`default_steps`).
+MIN_DEFAULT_STEPS = 6
 DEFAULT_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
 ACCURACY_TARGETS_DEG = (1.0, 0.1, 0.01, 0.001)
 #: A run whose max angle error exceeds this is counted unstable: RK4 past its stability limit
@@ -57,6 +59,21 @@ FIXED_STEP_WORK = (("step.monolithic", lambda r: r["steps"] * (r["method"] == "m
                    ("newton", lambda r: r["newton_iterations"]))
 ADAPTIVE_WORK = (("step", lambda r: r["steps"]), ("call", lambda r: r["rhs_body"]),
                  ("lu", lambda r: r["lu_decompositions"]))
+
+
+def default_steps(model: ChainModel) -> tuple[float, ...]:
+    """The study's steps on ``model``, s: those of `DEFAULT_STEPS` that divide its duration;
+    where fewer than `MIN_DEFAULT_STEPS` do, each other one is replaced by the largest step
+    below it that divides the duration (`divisor_step`; 20 ms → 19.64 ms on a 0.55 s jump)."""
+    from ..solvers.simulation import divisor_step
+
+    duration = model.duration
+    dividing = [h for h in DEFAULT_STEPS if h <= duration and abs(
+        round(duration / h) * h - duration) <= 1e-9]
+    if len(dividing) >= MIN_DEFAULT_STEPS:
+        return tuple(dividing)
+    return tuple(sorted({divisor_step(duration, h) for h in DEFAULT_STEPS if h <= duration},
+                        reverse=True))
 
 
 def joint_error_columns(model: ChainModel) -> tuple[str, ...]:

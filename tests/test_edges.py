@@ -1,0 +1,173 @@
+"""Issue 30's edges: names that would collide in the output table, help and docs that list
+every preset, the preset notes that match the file."""
+
+import math
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+import torquesim as ts
+from torquesim.cli import cli, main
+from torquesim.io.model_file import model_to_toml
+from torquesim.model.chain import RESERVED_COLUMNS
+from torquesim.model.presets import PRESETS
+
+ROOT = Path(__file__).parent.parent
+
+
+def _error_line(capsys, argv):
+    assert main(argv) == 2
+    err = "\n".join(line for line in capsys.readouterr().err.strip().splitlines()
+                    if not line.startswith(("compiling", "still compiling")))
+    assert err.startswith("error: ") and "\n" not in err and "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize("old, new, field", [
+    ('name = "hip_joint"', 'name = "com"', "points[2].name"),
+    ('name = "hip_joint"', 'name = "grf"', "points[2].name"),
+    ('name = "hip_joint"', 'name = "base"', "points[2].name"),
+    ('coordinate = "knee_angle"', 'coordinate = "grf_y"', "joints[2].coordinate"),
+    ('coordinate = "knee_angle"', 'coordinate = "cop_x"', "joints[2].coordinate"),
+    ('coordinate = "knee_angle"', 'coordinate = "toe_x"', "points[0].name"),
+    ('name = "knee_flexors"', 'name = "net_knee"', "units[3].name"),
+])
+def test_a_name_whose_output_column_is_taken_is_refused(tmp_path, capsys, old, new, field):
+    """A point named com, a coordinate named grf_y …: before, accepted and the column
+    silently overwritten by the centre of mass or the ground force."""
+    text = model_to_toml(ts.load_model("builtin:squat-jump"))
+    assert old in text
+    path = tmp_path / "m.toml"
+    path.write_text(text.replace(old, new, 1))
+    out = tmp_path / "run.csv"
+    err = _error_line(capsys, ["simulate", "--model", str(path), "--out", str(out)])
+    assert err.startswith("error: ") and "gives the output column" in err, err
+    assert field in err and ("reserved" in err or "also named by" in err)
+    assert not out.exists()
+
+
+def test_reserved_columns_are_refused_on_a_model_without_them():
+    """The model's own columns are reserved on every model (a coordinate named com_x on the
+    elbow would collide as soon as a point is added)."""
+    elbow = ts.load_model("builtin:elbow-curl")
+    for name in RESERVED_COLUMNS:
+        with pytest.raises(ts.ModelError) as info:
+            elbow.replace_joint("elbow", coordinate=name)
+        assert info.value.field in ("joints[0].coordinate", "coordinate")
+
+
+def test_every_output_column_is_named_once_and_in_table_order():
+    for name in PRESETS:
+        model = ts.load_model(f"builtin:{name}")
+        run = ts.simulate(model, "imex", step=2.5e-4, duration=0.01, check=False)
+        assert list(run.columns()) == list(model.output_columns())
+
+
+@pytest.mark.parametrize("bad", ["toe tip", "toe-tip", "", "heel.1"])
+def test_a_point_name_that_breaks_a_header_is_refused(bad):
+    with pytest.raises(ts.ModelError) as info:
+        ts.Point(bad, "foot", 0.1)
+    assert info.value.field == "name"
+    with pytest.raises(ts.ModelError) as info:
+        ts.GroundContact(bad)
+    assert info.value.field == "point"
+
+
+@pytest.mark.parametrize("command", [["simulate"], ["fit"], ["optimise"], ["compare"],
+                                     ["batch", "sweep"], ["batch", "fit"]])
+def test_every_model_help_lists_every_preset(command):
+    """The lists in the help come from the registry of presets (before, three commands'
+    help left out builtin:squat-jump)."""
+    text = " ".join(CliRunner().invoke(cli, [*command, "--help"], terminal_width=200)
+                    .output.split())
+    for name in PRESETS:
+        assert f"builtin:{name}" in text, (command, name)
+    assert "|" not in text.partition("--model")[2].partition("--")[0]
+
+
+def test_the_docs_list_every_preset():
+    for page in ("README.md", "docs/presets.md"):
+        text = (ROOT / page).read_text()
+        for name in PRESETS:
+            assert f"builtin:{name}" in text or f"`{name}`" in text, (page, name)
+    for page in ("README.md", "docs/index.md"):
+        assert "(1 to 16)" in (ROOT / page).read_text()
+
+
+def test_the_squat_jump_note_says_what_its_profiles_hold():
+    """The note gave '150 ms at full level' where the file holds 50 and 100 ms."""
+    model = ts.load_model("builtin:squat-jump")
+    notes = " ".join(model.notes)
+    for unit in model.units:
+        ramps = unit.activation.ramps
+        if ramps and ramps[0].level == 1.0:
+            held = round(ramps[1].delay * 1e3)
+            assert f"{held} ms ({'ankle' if unit.joint == 'ankle' else ''}" in notes \
+                or f"{held} ms (knee, hip)" in notes, (unit.name, held)
+    assert "150 ms at full" not in notes
+    assert math.isclose(model.duration, 0.55)
+
+
+class _Reached(Exception):
+    """Raised by a stub where a command's real work would start: every default was resolved
+    and checked by then."""
+
+
+def _stop_at(monkeypatch, module, name, check):
+    def stub(*args, **kwargs):
+        check(*args, **kwargs)
+        raise _Reached
+
+    monkeypatch.setattr(module, name, stub)
+
+
+@pytest.mark.parametrize("preset", list(PRESETS))
+def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, monkeypatch):
+    """simulate and model run for real; compare, fit, optimise and batch sweep run their
+    defaults' resolution and checks (steps that divide the duration, the fit's step and target,
+    the optimisation's start) up to where their search starts, which a stub stops (the searches
+    themselves are tested elsewhere). Before, compare's default steps failed on the squat jump
+    ("0.02 s does not divide the duration 0.55 s")."""
+    import importlib
+
+    sweep_module = importlib.import_module("torquesim.batch.sweep")
+    import torquesim.fitting.outputs as fit_outputs
+    import torquesim.optimisation.outputs as optimise_outputs
+    import torquesim.study.outputs as study_outputs
+    from torquesim.solvers.simulation import step_count
+
+    model = ts.load_model(f"builtin:{preset}")
+    spec = ["--model", f"builtin:{preset}"]
+    assert main(["simulate", *spec, "--out", str(tmp_path / "run.csv")]) == 0
+    assert main(["model", preset, "--out", str(tmp_path / "m.toml")]) == 0
+
+    def study_check(_directory, chain, *, steps, **_):
+        assert len(steps) >= 6
+        for h in steps:
+            step_count(chain.duration, h)
+
+    _stop_at(monkeypatch, study_outputs, "write_study", study_check)
+    with pytest.raises(_Reached):
+        main(["compare", *spec, "--quiet", "--out", str(tmp_path / "cmp")])
+
+    def fit_check(problem, *_, **__):
+        assert problem.step > 0 and problem.target.time.size > 10
+
+    _stop_at(monkeypatch, fit_outputs, "fit_and_write", fit_check)
+    with pytest.raises(_Reached):
+        main(["fit", *spec, "--quiet", "--out", str(tmp_path / "fit")])
+
+    goal = "jump_height" if model.contacts else f"peak_speed:{model.joints[-1].name}"
+    _stop_at(monkeypatch, optimise_outputs, "optimise_and_write", lambda *a, **k: None)
+    with pytest.raises(_Reached):
+        main(["optimise", *spec, "--maximise", goal, "--quiet", "--out",
+              str(tmp_path / "opt")])
+
+    _stop_at(monkeypatch, sweep_module, "_run_chunks", lambda *a, **k: None)
+    path = f"{model.units[0].name}.se_stiffness"
+    stiffness = model.units[0].parameters.se_stiffness
+    with pytest.raises(_Reached):
+        main(["batch", "sweep", *spec, "--vary",
+              f"{path}=uniform({0.9 * stiffness},{1.1 * stiffness})", "--quiet", "--out",
+              str(tmp_path / "sweep")])
