@@ -2,6 +2,7 @@
 every preset, the preset notes that match the file."""
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -171,3 +172,129 @@ def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, 
         main(["batch", "sweep", *spec, "--vary",
               f"{path}=uniform({0.9 * stiffness},{1.1 * stiffness})", "--quiet", "--out",
               str(tmp_path / "sweep")])
+
+
+# ------------------------------------------------------------------ bad input, new surfaces
+
+def test_two_outputs_to_one_file_are_refused_before_any_work(tmp_path, capsys):
+    """--out x.mot --grf x.mot wrote both (the table then held the forces, and its manifest
+    described the motion)."""
+    same = tmp_path / "x.mot"
+    err = _error_line(capsys, ["simulate", "--model", "builtin:squat-jump", "--out", str(same),
+                               "--grf", str(same)])
+    assert err.startswith("error: --grf:") and "also the file of --out" in err
+    assert not any(tmp_path.iterdir())
+
+
+def test_an_animation_name_that_cannot_be_written_is_refused_before_the_table(tmp_path,
+                                                                              capsys):
+    """Before, the table was written and the animation then failed naming a temporary file."""
+    table = tmp_path / "run.csv"
+    err = _error_line(capsys, ["simulate", "--out", str(table), "--animate",
+                               str(tmp_path / ("a" * 240 + ".gif"))])
+    assert err.startswith("error: --animate:") and "bytes" in err and ".tmp" not in err
+    assert not table.exists()
+    (tmp_path / "folder.gif").mkdir()
+    err = _error_line(capsys, ["simulate", "--out", str(table), "--animate",
+                               str(tmp_path / "folder.gif")])
+    assert "is a directory" in err and not table.exists()
+
+
+def test_a_long_run_is_animated_in_a_bounded_number_of_frames(tmp_path, monkeypatch):
+    """A 60 s run took 217 s and 2 GB (1.3 MB a frame, 25 frames a second, unbounded)."""
+    from PIL import Image
+
+    import torquesim.plots as plots
+
+    monkeypatch.setattr(plots, "MAX_FRAMES", 12)
+    run = ts.simulate(ts.default_model(), "imex", 5e-3, duration=6.0)
+    path = tmp_path / "long.gif"
+    plots.animate_result(run, path)
+    with Image.open(path) as gif:
+        assert gif.n_frames == 12
+    short = ts.simulate(ts.default_model(), "imex", 5e-3, duration=0.4)
+    plots.animate_result(short, tmp_path / "short.gif")
+    with Image.open(tmp_path / "short.gif") as gif:
+        assert gif.n_frames == 11  # 25 a simulated second, real time
+
+
+def _jump_target(**scale):
+    from torquesim.fitting.target import squat_jump_motion
+
+    t = squat_jump_motion()
+    channels = {k: v * scale.get(k, 1.0) for k, v in t.channels.items()}
+    return ts.fitting.Target(t.time * scale.get("time", 1.0), t.angles, t.joints, "x",
+                             channels)
+
+
+@pytest.mark.parametrize("scale, field, words", [
+    ({"grf_y": 1e-3}, "target.grf_y", "kN or body weights"),
+    ({"grf_y": 1 / 716.0}, "target.grf_y", "kN or body weights"),
+    ({"grf_y": -1.0}, "target.grf_y", "the ground only pushes"),
+    ({"com_y": 100.0}, "target.com_y", "cm or mm"),
+    ({"com_x": 1000.0, "com_y": 1000.0}, "target.com_x", "cm or mm"),
+    ({"time": 1000.0}, "target.time", "in ms"),
+])
+def test_a_target_in_other_units_is_named_before_any_simulation(scale, field, words):
+    """A GRF target in kN, in body weights or negative ended blaming the step (after 100 s
+    for a time in ms); a CoM in cm was fitted as metres ('com_y RMS 8896 cm')."""
+    from torquesim.fitting import FitProblem
+
+    model = ts.load_model("builtin:squat-jump")
+    with pytest.raises(ts.ModelError) as info:
+        FitProblem(_jump_target(**scale), base_model=model)
+    assert info.value.field == field and words in str(info.value)
+    FitProblem(_jump_target(), base_model=model)  # the same target in SI is taken
+
+
+def test_a_grf_file_in_kilonewtons_is_one_line_and_no_output(tmp_path, capsys):
+    target = _jump_target(grf_x=1e-3, grf_y=1e-3)
+    lines = ["time,knee_angle,grf_x,grf_y"] + [
+        f"{t},{math.degrees(q)},{fx},{fy}" for t, q, fx, fy in zip(
+            target.time, target.angles[2], target.channels["grf_x"], target.channels["grf_y"],
+            strict=True)]
+    path = tmp_path / "trial.csv"
+    path.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "fit"
+    err = _error_line(capsys, ["fit", "--model", "builtin:squat-jump", "--target", str(path),
+                               "--out", str(out), "--quiet"])
+    assert err.startswith("error: target.grf_y:") and "kN" in err
+    assert not out.exists()
+
+
+def test_contacts_too_soft_to_stand_on_name_the_stiffness():
+    """A stiffness of 1e-3 (inside its documented range) let the body sink 5 km; the advice
+    then blamed the step."""
+    model = ts.load_model("builtin:squat-jump")
+    soft = tuple(replace(c, stiffness=1e-3) for c in model.contacts)
+    with pytest.raises(ts.ModelError) as info:
+        model.replace(contacts=soft)
+    assert info.value.field == "contacts[0].stiffness" and "sink" in str(info.value)
+    assert "allowed ≥" in str(info.value)
+
+
+def test_a_missing_thigh_length_is_named_not_the_posture(tmp_path, capsys):
+    text = model_to_toml(ts.load_model("builtin:squat-jump"))
+    line = next(ln for ln in text.split("[[segments]]")[3].splitlines()
+                if ln.startswith("length = "))
+    path = tmp_path / "m.toml"
+    path.write_text(text.replace(line, "", 1))
+    err = _error_line(capsys, ["simulate", "--model", str(path)])
+    assert err.startswith("error: segments[2].length: is missing"), err
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["--bound", "nosuch=0,1"], "--bound"),
+    (["--bound", "elbow_flexor.ramp7=0,1"], "--bound"),
+    (["--freeze", "elbow_flexor.ramp0"], "--freeze"),
+    (["--free", "nosuch"], "--free"),
+    (["--timing-error", "5"], "--timing-error"),
+    (["--window-delay", "-1"], "--window-delay"),
+    (["--minimise", "time_to:elbow=10deg"], "--minimise"),
+])
+def test_optimise_options_are_named_in_their_errors(tmp_path, capsys, argv, option):
+    goal = [] if "--minimise" in argv else ["--minimise", "time_to:elbow=90deg"]
+    out = tmp_path / "opt"
+    err = _error_line(capsys, ["optimise", *goal, *argv, "--out", str(out), "--quiet"])
+    assert err.startswith(f"error: {option}"), err
+    assert not out.exists()

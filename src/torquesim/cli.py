@@ -39,15 +39,50 @@ class TimeValue(click.ParamType):
 TIME = TimeValue()
 
 
+#: Room a file name must leave for the temporary name it is written under first (atomic
+#: writes: ``.<name>.<pid>.tmp<suffix>``), bytes.
+TEMPORARY_NAME_ROOM = 32
+
+
 def _check_output(path: str | None, suffixes, option: str) -> None:
-    """Refuse an output ``path`` before any work: unknown extension, or a folder that does not
-    exist or cannot be written in."""
+    """Refuse an output ``path`` before any work: unknown extension, a folder that does not
+    exist or cannot be written in, a name too long to write, a directory or a read-only file
+    of that name."""
+    import os
+
     if path is None:
         return
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise ModelError(option, f"{path!r}: unknown extension; allowed {', '.join(suffixes)}")
     _check_writable_folder(p.parent, option, path)
+    folder = str(p.parent) or "."
+    try:
+        longest = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        longest = 255
+    if len(p.name.encode()) + TEMPORARY_NAME_ROOM > longest:
+        raise ModelError(option, f"{path!r}: a name of {len(p.name.encode())} bytes; allowed at "
+                         f"most {longest - TEMPORARY_NAME_ROOM} bytes in this folder")
+    if p.is_dir():
+        raise ModelError(option, f"{path!r} is a directory; allowed: a file name")
+    if p.exists() and not os.access(p, os.W_OK):
+        raise ModelError(option, f"{path!r} exists and cannot be written; allowed: a file "
+                         "this user may replace")
+
+
+def _check_distinct_outputs(paths: dict[str, str | None]) -> None:
+    """Refuse two outputs of one command written to the same file (one would overwrite the
+    other, and a manifest would describe the wrong data): ``paths`` maps option → path."""
+    seen: dict[Path, str] = {}
+    for option, path in paths.items():
+        if path is None:
+            continue
+        where = Path(path).resolve()
+        if where in seen:
+            raise ModelError(option, f"{path!r} is also the file of {seen[where]}; allowed: a "
+                             "file of its own")
+        seen[where] = option
 
 
 def _check_out_folder(out: Path) -> None:
@@ -131,6 +166,9 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
     _check_output(animation_path, (".gif",), "--animate")
     _check_output(grf_path, (".mot",), "--grf")
+    _check_distinct_outputs({"--out": out_path, "--out's manifest": out_path and
+                             f"{out_path}.manifest.json", "--plot": plot_path,
+                             "--animate": animation_path, "--grf": grf_path})
     model = load_model(model_path)
     if grf_path and not model.contacts:
         raise ModelError("--grf", f"{model.name} has no ground contacts; allowed: a model "
@@ -850,7 +888,10 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
 
         model = model.replace(duration=check_range("--duration", duration, 0.0,
                                                     low_open=True, unit="s"))
-    goals = goals_of(model, maximise, minimise)
+    try:
+        goals = goals_of(model, maximise, minimise)
+    except ModelError as exc:
+        raise _as_option(exc, OPTIMISE_OPTIONS) from None
     freeze = {}
     for text in frozen:
         name, eq, value = text.partition("=")
@@ -859,6 +900,10 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
         except ValueError:
             raise ModelError("--freeze", f"{text!r}: allowed PATH or PATH=VALUE, e.g. "
                              "elbow_flexor.ramp1.level=0.6") from None
+    from .errors import check_range
+
+    check_range("--window-delay", window_delay, 0.0, 10.0, unit="s")
+    check_range("--timing-error", timing_error, 0.0, 1.0, unit="s")
     window = Window(delay=window_delay, duration=window_duration, level=window_level)
     limits = dict(_parse_assignments(bounds, "--bound", 2))
     settings = OptimiseSettings(seed=seed, generations=generations, population=population,
@@ -887,8 +932,11 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
         with engine as client:
             # The cluster's workers are forked before this process runs compiled parallel
             # code (the problem simulates its start): forking after OpenMP is unsafe.
-            problem = OptimiseProblem(model, goals, method, step, window, tuple(free), freeze,
-                                      limits, robust, timing_error, robust_mode)
+            try:
+                problem = OptimiseProblem(model, goals, method, step, window, tuple(free),
+                                          freeze, limits, robust, timing_error, robust_mode)
+            except ModelError as exc:
+                raise _as_option(exc, OPTIMISE_OPTIONS) from None
             state = None
             if resume:
                 state = load_checkpoint(checkpoint, problem, settings)
@@ -1099,6 +1147,24 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
                    "--tolerance, or --accept-inaccurate to accept them", err=True)
         return 1
     return 1 if failed else 0
+
+
+#: The Python fields of an optimisation and the options that set them.
+OPTIMISE_OPTIONS = {"maximise": "--maximise", "minimise": "--minimise", "free": "--free",
+                    "frozen": "--freeze", "bounds": "--bound",
+                    "timing_error": "--timing-error", "robust": "--robust", "step": "--step",
+                    "method": "--method", "window.delay": "--window-delay",
+                    "window.duration": "--window-duration", "window.level": "--window-level"}
+
+
+def _as_option(exc: ModelError, options: dict[str, str]) -> ModelError:
+    """``exc`` naming the command-line option of its field (``bounds.X`` → ``--bound X``)."""
+    head, dot, rest = exc.field.partition(".")
+    if exc.field in options:
+        return ModelError(options[exc.field], exc.reason)
+    if head in options and dot:
+        return ModelError(f"{options[head]} {rest}", exc.reason)
+    return exc
 
 
 def _tolerance_rad(degrees: float, option: str) -> float:

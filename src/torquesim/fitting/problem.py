@@ -16,7 +16,7 @@ from ..solvers.coupling import default_coupling
 from ..solvers.techniques import FIT_METHODS
 from . import objective as obj
 from .parameters import ParameterSpace, with_ramps
-from .target import CHANNELS, Target, check_channels
+from .target import CHANNELS, Target, check_target
 
 DEFAULT_METHOD = "imex"
 #: Default fit step, s: IMEX is stable at any step; 5 ms keeps it within ~0.3° of the
@@ -114,7 +114,7 @@ class FitProblem:
                         else preset("builtin:elbow-curl"))
         if not isinstance(base, ChainModel):
             raise TypeError("base_model: expected a model")
-        check_channels(base, self.target)
+        check_target(base, self.target)
         if self.space is None:
             self.space = ParameterSpace.for_model(base)
         if self.space.units != tuple(u.name for u in base.units):

@@ -170,9 +170,33 @@ def _auto_column(joint, names: list[str], one_joint: bool) -> str | None:
     return None
 
 
-def check_channels(chain, target: Target) -> None:
-    """A one-line `ModelError` unless ``chain`` has what the target's channels measure: a free
-    base, and ground contacts for a ground reaction force."""
+#: Largest median interval between a target's samples, s: a motion recorded in ms instead of
+#: s shows its samples 1 to 10 "s" apart.
+MAX_SAMPLE_INTERVAL = 0.5
+#: The ground pushes: a vertical force below this many body weights is not a force in N.
+MIN_GRF_Y_BODY_WEIGHTS = -0.05
+#: The peak vertical ground reaction force of a movement on the ground, in body weights: below
+#: or above it the channel is in other units (kN, body weights, mN).
+GRF_Y_PEAK_BODY_WEIGHTS = (0.3, 15.0)
+#: The largest |horizontal force| in body weights.
+MAX_GRF_X_BODY_WEIGHTS = 5.0
+#: The centre of mass lies within this many times the model's size (the sum of its segments'
+#: extents) of the ground frame's origin, or within `MIN_COM_REACH` m, whichever is larger.
+COM_REACH_SIZES, MIN_COM_REACH = 2.0, 5.0
+
+
+def check_target(chain, target: Target) -> None:
+    """A one-line `ModelError` unless ``target`` fits ``chain``: its time in seconds (samples at
+    most `MAX_SAMPLE_INTERVAL` apart), and, for channels, a free base, ground contacts for a
+    ground reaction force, forces in N within the body weight's scale and positions in m
+    within the body's reach (a channel in kN, body weights, cm or mm is named with what it
+    looks like)."""
+    if target.time.size > 1:
+        interval = float(np.median(np.diff(target.time)))
+        if interval > MAX_SAMPLE_INTERVAL:
+            raise ModelError("target.time", f"samples {interval:.4g} s apart, "
+                             f"{target.duration:.4g} s in all: is the time in ms? allowed: "
+                             f"seconds, samples at most {MAX_SAMPLE_INTERVAL:g} s apart")
     if not target.channels:
         return
     names = ", ".join(target.channels)
@@ -182,6 +206,36 @@ def check_channels(chain, target: Target) -> None:
     if not chain.contacts and any(c.startswith("grf") for c in target.channels):
         raise ModelError("target", f"holds a ground reaction force but {chain.name!r} has no "
                          "ground contact; allowed: com_x, com_y and joint angles")
+    weight = chain.weight
+    if "grf_y" in target.channels:
+        force = target.channels["grf_y"] / weight
+        low, high = GRF_Y_PEAK_BODY_WEIGHTS
+        if force.min() < MIN_GRF_Y_BODY_WEIGHTS:
+            raise ModelError("target.grf_y", f"values down to {force.min() * weight:.4g} N "
+                             f"({force.min():.3g} body weights of {weight:.0f} N): the ground "
+                             "only pushes; allowed: N, upwards positive (≥ "
+                             f"{MIN_GRF_Y_BODY_WEIGHTS:g} body weights)")
+        if not low <= force.max() <= high:
+            looks = "kN or body weights" if force.max() < low else "mN or another unit"
+            raise ModelError("target.grf_y", f"peak {force.max() * weight:.4g} is "
+                             f"{force.max():.3g} body weights of this model ({weight:.0f} N): "
+                             f"is it in {looks}? allowed: N, a peak of {low:g} to {high:g} "
+                             "body weights")
+    if "grf_x" in target.channels:
+        largest = float(np.max(np.abs(target.channels["grf_x"]))) / weight
+        if largest > MAX_GRF_X_BODY_WEIGHTS:
+            raise ModelError("target.grf_x", f"values up to {largest:.3g} body weights of this "
+                             f"model ({weight:.0f} N); allowed: N, within "
+                             f"±{MAX_GRF_X_BODY_WEIGHTS:g} body weights")
+    size = sum(seg.extent for seg in chain.segments)
+    reach = max(COM_REACH_SIZES * size, MIN_COM_REACH)
+    for name in ("com_x", "com_y"):
+        if name in target.channels:
+            largest = float(np.max(np.abs(target.channels[name])))
+            if largest > reach:
+                raise ModelError(f"target.{name}", f"values up to {largest:.4g}: is it in cm or "
+                                 f"mm? allowed: m, within ±{reach:.3g} m of the ground frame's "
+                                 f"origin (this model's segments span {size:.3g} m)")
 
 
 def load_target(spec: str, model=None, columns=None, units: str | None = None) -> Target:
@@ -212,7 +266,7 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
             raise ModelError("target", f"{spec} moves joint(s) {', '.join(missing)}, which the "
                              f"model {chain.name!r} does not have (joints: "
                              f"{', '.join(joint_names)})")
-        check_channels(chain, target)
+        check_target(chain, target)
         return target
     if isinstance(columns, str):
         if chain.n_joints != 1:
@@ -252,12 +306,12 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
     time, angles = read_angle_table(spec, units, columns=pick,
                                     raw=lambda: set(channel_columns.values()))
     if time[-1] - time[0] > 600.0:
-        raise ModelError("target", f"{spec}: spans {time[-1] - time[0]:g} s; allowed at most "
-                         "600 s")
+        raise ModelError("target.time", f"{spec}: spans {time[-1] - time[0]:g} s (is the "
+                         "time in ms?); allowed: seconds, at most 600 s")
     joints = tuple(mapping)
     described = ", ".join(f"{j}={c}" for j, c in [*mapping.items(), *channel_columns.items()])
     target = Target(time, np.array([angles[mapping[j]] for j in joints]), joints,
                     f"{spec} [{described}]",
                     {c: angles[column] for c, column in channel_columns.items()})
-    check_channels(chain, target)
+    check_target(chain, target)
     return target

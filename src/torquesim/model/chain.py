@@ -98,6 +98,9 @@ FLEXOR, EXTENSOR = 1, -1
 SPEED_LIMIT_FACTOR = 10.0
 
 
+#: Deepest a body may sink into the ground standing on its contacts, m (a soft mat: a few cm);
+#: softer contacts than that are not a floor.
+MAX_STANDING_SINK = 0.05
 #: Upper bounds of body parameters: far beyond any human segment, finite so that no value can
 #: overflow the mechanics (kg, m, kg·m²).
 MAX_MASS, MAX_LENGTH, MAX_INERTIA = 1000.0, 10.0, 1.0e4
@@ -930,6 +933,16 @@ class ChainModel:
                              f"m) is not over the contacts (x from {xs.min():.3f} to "
                              f"{xs.max():.3f} m): the posture cannot stand; allowed: a "
                              "posture whose centre of mass lies over its contact points")
+        for c, contact in enumerate(self.contacts):  # the body's weight shared alike
+            share = weight / len(which)
+            sink = (share / contact.stiffness) ** (1 / contact.exponent)
+            if sink > MAX_STANDING_SINK:
+                least = share / MAX_STANDING_SINK ** contact.exponent
+                raise ModelError(f"contacts[{c}].stiffness", f"{contact.stiffness:.4g} "
+                                 f"N/m^{contact.exponent:g} lets the body sink {sink:.3g} m into "
+                                 f"the ground standing; allowed ≥ {least:.3g} N/m^"
+                                 f"{contact.exponent:g} for this body (a standing sink of at "
+                                 f"most {MAX_STANDING_SINK * 100:g} cm)")
         sink = max((weight / len(which) / c.stiffness) ** (1 / c.exponent)
                    for c in self.contacts)
         guess = [-where["points"][which, 1].min() - sink, q0[0]]

@@ -254,4 +254,9 @@ def parse_goal(text: str, model, *, maximise: bool, field: str = "goal") -> Goal
                              "e.g. 90deg or 1.57rad") from None
         angle = angle if unit == "rad" else math.radians(angle)
         check_range(f"{field}.angle", angle, -2 * math.pi, 2 * math.pi, unit="rad")
+        start = next(j.initial_angle for j in model.joints if j.name == joint)
+        if abs(start - angle) <= 1e-9:
+            raise ModelError(field, f"{text!r}: {joint} starts at {math.degrees(start):g} deg, "
+                             "so the goal is met at t = 0; allowed: an angle the joint moves "
+                             "to")
     return Goal(name, maximise, weight, joint, angle, label=text.strip())

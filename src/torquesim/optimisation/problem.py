@@ -122,15 +122,20 @@ def three_ramps(model: ChainModel) -> ChainModel:
     return model.replace(units=tuple(units))
 
 
-def _parameters_of(space: ParameterSpace, path: str) -> list[str]:
-    """The parameter names ``path`` selects: a unit, ``UNIT.rampK`` or one parameter."""
+def _parameters_of(space: ParameterSpace, path: str, field: str) -> list[str]:
+    """The parameter names ``path`` selects: a unit, ``UNIT.rampK`` or one parameter; a
+    `ModelError` on ``field`` (``free``, ``frozen`` or ``bounds``) for a path that names
+    none."""
     unit = space.aliases.get(path, path)
     if unit in space.units:
         return [n for n in space.names if n.startswith(unit + ".ramp")]
     head, dot, ramp = path.rpartition(".")
     if dot and ramp.startswith("ramp") and ramp[4:].isdigit():
-        return [space.resolve(f"{path}.{f}", "free") for f in RAMP_FIELDS]
-    return [space.resolve(path, "free")]
+        if int(ramp[4:]) not in range(1, RAMPS_PER_UNIT + 1):
+            raise ModelError(field, f"{path!r}: no ramp {ramp[4:]}; allowed ramp1 to "
+                             f"ramp{RAMPS_PER_UNIT} of a unit ({', '.join(space.units)})")
+        return [space.resolve(f"{path}.{f}", field) for f in RAMP_FIELDS]
+    return [space.resolve(path, field)]
 
 
 def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=None,
@@ -145,10 +150,10 @@ def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=No
                        strict=True)
     lower, upper = list(lower), list(upper)
     for path, (low, high) in (bounds or {}).items():
-        for name in _parameters_of(space, path):
+        for name in _parameters_of(space, path, "bounds"):
             i = names.index(name)
             if not low <= start[i] <= high:
-                raise ModelError(f"bound.{path}", f"[{low:g}, {high:g}] excludes the starting "
+                raise ModelError(f"bounds.{path}", f"[{low:g}, {high:g}] excludes the starting "
                                  f"model's {name} = {start[i]:g}; allowed: bounds that "
                                  "contain it")
             lower[i], upper[i] = low, high
@@ -159,10 +164,10 @@ def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=No
             lower[i], upper[i] = HARD_LIMITS[n.rsplit(".", 1)[1]]
     chosen = set(names)
     if free:
-        chosen = {n for path in free for n in _parameters_of(space, path)}
+        chosen = {n for path in free for n in _parameters_of(space, path, "free")}
     held = {n: float(start[i]) for i, n in enumerate(names) if n not in chosen}
     for path, value in (frozen or {}).items():
-        for name in _parameters_of(space, path):
+        for name in _parameters_of(space, path, "frozen"):
             held[name] = float(start[names.index(name)]) if value is None else float(value)
     space = ParameterSpace(units=space.units, lower=tuple(lower), upper=tuple(upper),
                            frozen={**pinned, **held}, aliases=space.aliases)
