@@ -44,15 +44,14 @@ def other_model(model: ts.ChainModel) -> ts.ChainModel:
     return model.replace(units=tuple(units))
 
 
-def fit_once(model, target, scheme: str) -> dict:
+def fit_once(model, target, scheme: str, settings) -> dict:
     fit_module.JACOBIAN_SCHEME = scheme
     problem = FitProblem(target, base_model=model)
     problem.evaluate(np.array([problem.space.upper]))  # compile outside the timing
     problem.simulations = 0
     lines = []
     start = time.perf_counter()
-    problem, outcome, refinements = fit_to_accuracy(problem, SearchSettings(),
-                                                    progress=lines.append)
+    problem, outcome, refinements = fit_to_accuracy(problem, settings, progress=lines.append)
     wall = time.perf_counter() - start
     fitted = ts.simulate(problem.model_for(outcome.x), "reference", output_step=0.01)
     rms = {j.name: float(np.sqrt(np.mean(np.degrees(fitted.angle(j.name) - target.angles[k])
@@ -66,6 +65,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jacobian", choices=("forward", "central", "both"), default="both")
     parser.add_argument("--write-target", help="also write the target as a .mot file here")
+    parser.add_argument("--iterations", type=int, default=SearchSettings().iterations,
+                        help="residual evaluations of the refining least squares (its cap)")
     args = parser.parse_args()
     print(f"load average at start: {load_average():.2f} (2 cores)")
     model = ts.load_model("builtin:arm-raise")
@@ -78,7 +79,7 @@ def main() -> None:
             j.coordinate: run.angle(j.name) for j in model.joints}}, name="other-model")
     schemes = ("forward", "central") if args.jacobian == "both" else (args.jacobian,)
     for scheme in schemes:
-        got = fit_once(model, target, scheme)
+        got = fit_once(model, target, scheme, SearchSettings(iterations=args.iterations))
         rms = ", ".join(f"{j} {v:.3f}°" for j, v in got["rms"].items())
         print(f"{scheme:8s} RMS (reference) {rms}; {got['simulations']} simulations, "
               f"{got['wall']:.1f} s, final step {got['step_ms']:.3g} ms")

@@ -19,7 +19,12 @@ from torquesim.optimisation import (
     parse_goal,
 )
 from torquesim.optimisation.outputs import parameter_effects
-from torquesim.optimisation.problem import FAILED_COST, apply_timing_errors, three_ramps
+from torquesim.optimisation.problem import (
+    FAILED_COST,
+    INFEASIBLE_COST,
+    apply_timing_errors,
+    three_ramps,
+)
 from torquesim.optimisation.search import load_checkpoint, optimise_population
 
 G = 9.81
@@ -160,19 +165,31 @@ def test_free_and_freeze_choose_what_moves(curl):
         OptimiseProblem(curl, goals, free=("elbow_flexor.ramp7.level",))
 
 
-def test_a_run_beyond_the_end_stops_fails_with_its_reason_counted(curl):
-    """Every flexor ramp at full activation swings the elbow past its 150° end stop by more
-    than 2·s_p: that candidate fails, the reason is counted, its cost is FAILED_COST."""
+def test_a_run_beyond_the_end_stops_is_infeasible_by_how_far(curl):
+    """Every flexor ramp at full activation swings the elbow past its 150° end stop: by default
+    (an optimum may not lean on the passive stop torque) that candidate is infeasible, costing
+    INFEASIBLE_COST plus the end-stop scales it went past, so the search ranks it below every
+    feasible one and a nearer one first; allowed that depth (--endstop-depth), it is scored
+    by its goal."""
     problem = OptimiseProblem(curl, goals_of(curl, maximise="peak_speed:elbow"),
                               bounds={f"elbow_flexor.ramp{k}.level": (0.0, 1.0)
                                       for k in (1, 2, 3)})
     strong = problem.x0.copy()
     strong[[2, 5, 8]] = 1.0
-    cost, nominal, _ = problem.score(np.array([problem.x0, strong]))
-    assert cost[0] < 0 and cost[1] == FAILED_COST and math.isnan(nominal[1, 0])
-    assert problem.failures == {"elbow left its range (0 to 150 deg)": 1}
+    milder = problem.x0.copy()
+    milder[[2, 5, 8]] = 0.9
+    cost, nominal, _ = problem.score(np.array([problem.x0, strong, milder]))
     run = problem.run(strong)
-    assert np.degrees(run.q[:, 0].max()) > 150 + np.degrees(2 * 0.05)
+    past = (run.q[:, 0].max() - math.radians(150.0)) / 0.05  # end-stop scales s_p
+    assert past > 2
+    assert cost[0] < 0 and cost[1] == pytest.approx(INFEASIBLE_COST + past, rel=1e-3)
+    assert INFEASIBLE_COST < cost[2] < cost[1] and np.isfinite(nominal[1, 0])
+    assert not problem.failures
+    lenient = OptimiseProblem(curl, goals_of(curl, maximise="peak_speed:elbow"),
+                              bounds={f"elbow_flexor.ramp{k}.level": (0.0, 1.0)
+                                      for k in (1, 2, 3)}, endstop_depth=past + 0.5)
+    cost, nominal, _ = lenient.score(np.array([strong]))
+    assert cost[0] == pytest.approx(-nominal[0, 0] / lenient.scales[0])
 
 
 def test_goals_combine_in_units_of_the_start(curl):
@@ -347,3 +364,74 @@ def test_a_goal_the_free_parameters_cannot_move_is_told(curl):
                        settings=OptimiseSettings(generations=3))
     assert best.summary["goals"][0]["gain"] == 0.0
     assert best.summary["warnings"][0].startswith("no candidate beat the start in 3 generations")
+
+
+def _flight(take_off=10, land=None, n=60, g=9.81, dt=0.01, v0=2.0):
+    """A synthetic trial: on the ground until ``take_off``, ballistic after, down again at
+    sample ``land`` (None: not in the run)."""
+    from torquesim.optimisation.goals import Trial
+
+    t = np.arange(n) * dt
+    flying = np.clip(t - take_off * dt, 0.0, None)
+    y = 1.0 + v0 * flying - 0.5 * g * flying**2
+    vy = np.where(t >= take_off * dt, v0 - g * flying, 0.0)
+    grf = np.where(np.arange(n) < take_off, 700.0, 0.0)
+    if land is not None:
+        grf[land:] = 700.0
+    zeros = np.zeros((n, 1))
+    return Trial(t, zeros, zeros, zeros, com_y=y, com_speed_x=np.full(n, -0.3),
+                 com_speed_y=vy, grf_y=grf, gravity=g)
+
+
+def test_jump_height_is_the_apex_in_flight_and_no_jump_lands_before_it():
+    """The real apex when the run holds it (v²/2g from take-off before); a run that touches
+    down again before its apex made no jump (before: scored by its take-off speed)."""
+    from torquesim.optimisation.goals import Goal
+
+    height = Goal("jump_height", True)
+    apex = 2.0**2 / (2 * 9.81)
+    value, why = height.value(_flight(), ())
+    assert why == "" and value == pytest.approx(apex, abs=2e-3)   # the highest sample
+    value, why = height.value(_flight(n=25), ())  # ends rising: ballistic from take-off
+    assert why == "" and value == pytest.approx(apex, rel=1e-12)
+    value, why = height.value(_flight(land=20), ())  # down again at 0.1 s, apex at 0.2 s
+    assert math.isnan(value) and "before its apex" in why
+    drift = Goal("com_speed_x_at_takeoff", False)
+    assert drift.value(_flight(), ()) == (-0.3, "")
+
+
+def test_the_jump_apex_agrees_with_the_ballistic_flight_of_its_take_off():
+    jump = ts.load_model("builtin:squat-jump")
+    from torquesim.optimisation.goals import Goal, Trial, take_off_index
+
+    run = ts.simulate(jump, "reference", output_step=1e-3)
+    trial = Trial.of(run)
+    i = take_off_index(trial.grf_y)
+    ballistic = trial.com_y[i] + trial.com_speed_y[i] ** 2 / (2 * jump.gravity) - trial.com_y[0]
+    value, why = Goal("jump_height", True).value(trial, ())
+    assert why == "" and value == pytest.approx(ballistic, abs=2e-5)
+
+
+def test_constraints_parse_in_their_units_and_rank_infeasible_candidates():
+    from torquesim.optimisation import parse_constraint
+
+    jump = ts.load_model("builtin:squat-jump")
+    drift = parse_constraint("com_speed_x_at_takeoff=-0.1..0.1", jump)
+    assert (drift.low, drift.high) == (-0.1, 0.1)
+    assert drift.violation(0.05) == 0.0 and drift.violation(-0.48) == pytest.approx(1.9)
+    curl = ts.load_model("builtin:elbow-curl")
+    stop = parse_constraint("final_angle:elbow=..20", curl)
+    assert stop.low == -math.inf and stop.high == pytest.approx(math.radians(20))
+    for bad in ("final_angle:elbow=20", "final_angle:elbow=30..20", "jump_height=a..1",
+                "nothing=0..1"):
+        with pytest.raises(ModelError) as info:
+            parse_constraint(bad, jump if "jump" in bad else curl)
+        assert info.value.field == "constrain"
+    problem = OptimiseProblem(jump, goals_of(jump, maximise="jump_height"),
+                              constraints=(drift,))
+    values, reasons, violation = problem.goal_values(problem.x0[None, :])
+    start_drift = Trial.of(problem.run(problem.x0)).com_speed_x
+    assert reasons == [""] and violation[0] > 1.0  # the preset drifts backwards (-0.48 m/s)
+    cost, _, _ = problem.score(problem.x0[None, :])
+    assert cost[0] == pytest.approx(INFEASIBLE_COST + violation[0])
+    assert start_drift is not None

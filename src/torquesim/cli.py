@@ -826,6 +826,15 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
 @click.option("--window-level", type=click.FloatRange(0.0, 10.0), default=0.3,
               show_default=True,
               help="Every level may move ± this fraction (at least ± 0.05 activation).")
+@click.option("--constrain", "constrain", multiple=True, metavar="GOAL=LOW..HIGH",
+              help="Hold a goal's value within bounds (repeatable; either bound may be left "
+                   "out), in its unit (m, m/s, s; degrees and deg/s for angles and angular "
+                   "speeds), e.g. com_speed_x_at_takeoff=-0.1..0.1 or final_angle:elbow=..150. "
+                   "A candidate outside is infeasible.")
+@click.option("--endstop-depth", type=click.FloatRange(0.0, 20.0), default=0.0,
+              show_default=True,
+              help="How far a run may go past an end stop, in end-stop angle scales (0: not "
+                   "past the stop angle, so an optimum does not lean on passive stop torque).")
 @click.option("--robust", type=click.IntRange(0, 1000), default=0, show_default=True,
               help="Score each candidate on its run and this many copies with random onset "
                    "errors on every ramp (0: the plain optimum).")
@@ -855,9 +864,9 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
               help="Start again in an --out directory that holds an earlier optimisation.")
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
 def optimise(model_path, maximise, minimise, method, step, duration, free, frozen, bounds,
-             window_delay, window_duration, window_level, robust, timing_error, robust_mode,
-             generations, population, sigma, seed, workers, scheduler, out_dir, resume,
-             overwrite, quiet):
+             window_delay, window_duration, window_level, constrain, endstop_depth, robust,
+             timing_error, robust_mode, generations, population, sigma, seed, workers,
+             scheduler, out_dir, resume, overwrite, quiet):
     """Optimise the activation ramps of a model for one or more goals.
 
     Every ramp may move within a window around the starting model's (the optimum stays a
@@ -869,7 +878,13 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
     import signal
 
     from .io.model_file import load_model
-    from .optimisation import OptimiseProblem, OptimiseSettings, Window, goals_of
+    from .optimisation import (
+        OptimiseProblem,
+        OptimiseSettings,
+        Window,
+        constraints_of,
+        goals_of,
+    )
     from .optimisation.outputs import (
         CHECKPOINT_FILE,
         OPTIMISE_FILES,
@@ -890,6 +905,7 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
                                                     low_open=True, unit="s"))
     try:
         goals = goals_of(model, maximise, minimise)
+        constraints = constraints_of(model, constrain)
     except ModelError as exc:
         raise _as_option(exc, OPTIMISE_OPTIONS) from None
     freeze = {}
@@ -934,7 +950,8 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
             # code (the problem simulates its start): forking after OpenMP is unsafe.
             try:
                 problem = OptimiseProblem(model, goals, method, step, window, tuple(free),
-                                          freeze, limits, robust, timing_error, robust_mode)
+                                          freeze, limits, robust, timing_error, robust_mode,
+                                          constraints=constraints, endstop_depth=endstop_depth)
             except ModelError as exc:
                 raise _as_option(exc, OPTIMISE_OPTIONS) from None
             state = None
@@ -1150,7 +1167,9 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
 
 
 #: The Python fields of an optimisation and the options that set them.
-OPTIMISE_OPTIONS = {"maximise": "--maximise", "minimise": "--minimise", "free": "--free",
+OPTIMISE_OPTIONS = {"maximise": "--maximise", "minimise": "--minimise",
+                    "constrain": "--constrain", "endstop_depth": "--endstop-depth",
+                    "free": "--free",
                     "frozen": "--freeze", "bounds": "--bound",
                     "timing_error": "--timing-error", "robust": "--robust", "step": "--step",
                     "method": "--method", "window.delay": "--window-delay",

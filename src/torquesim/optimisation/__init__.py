@@ -13,12 +13,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ModelError
-from .goals import GOALS, Goal, Trial, parse_goal
+from .goals import GOALS, Constraint, Goal, Trial, parse_constraint, parse_goal
 from .problem import OptimiseProblem, Window
 from .search import OptimiseOutcome, OptimiseSettings
 
-__all__ = ["GOALS", "Goal", "OptimiseProblem", "OptimiseSettings", "Optimum", "Trial",
-           "Window", "goals_of", "optimise", "parse_goal"]
+__all__ = ["GOALS", "Constraint", "Goal", "OptimiseProblem", "OptimiseSettings", "Optimum",
+           "Trial", "Window", "constraints_of", "goals_of", "optimise", "parse_constraint",
+           "parse_goal"]
 
 
 @dataclass
@@ -57,19 +58,32 @@ def goals_of(model, maximise=(), minimise=()) -> tuple[Goal, ...]:
     return tuple(out)
 
 
+def constraints_of(model, constrain=()) -> tuple[Constraint, ...]:
+    """Constraints from their written forms (``GOAL=LOW..HIGH``, `parse_constraint`) or
+    `Constraint` objects."""
+    if isinstance(constrain, str | Constraint):
+        constrain = (constrain,)
+    return tuple(c if isinstance(c, Constraint) else parse_constraint(c, model)
+                 for c in constrain)
+
+
 def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: str = "imex",
              step: float | None = None, window: Window | None = None, free=(),
              frozen: dict | None = None, bounds: dict | None = None, robust: int = 0,
-             timing_error: float = 0.01, robust_mode: str = "worst",
-             settings: OptimiseSettings | None = None, out: str | Path | None = None,
-             client=None, progress: Callable[[str], None] | None = None) -> Optimum:
+             timing_error: float = 0.01, robust_mode: str = "worst", constrain=(),
+             endstop_depth: float = 0.0, settings: OptimiseSettings | None = None,
+             out: str | Path | None = None, client=None,
+             progress: Callable[[str], None] | None = None) -> Optimum:
     """Optimise ``model``'s activation ramps for the goals (see `torquesim.optimisation`).
 
     ``model``: a `ChainModel`, a model file or ``builtin:NAME``. ``maximise`` / ``minimise``:
     a goal or a list (written forms such as ``"time_to:elbow=90deg"``, `Goal` objects, or
     functions of a `SimulationResult`). ``free``, ``frozen`` (path → value or None for the
     start's), ``bounds`` (path → (low, high)) and ``window`` say what may move; ``robust``
-    perturbed copies with onset errors in ±``timing_error`` s make the optimum robust. With
+    perturbed copies with onset errors in ±``timing_error`` s make the optimum robust.
+    ``constrain``: goals held within bounds (``"com_speed_x_at_takeoff=-0.1..0.1"`` or
+    `Constraint` objects); ``endstop_depth``: how many end-stop scales a run may go past an
+    end stop (default 0: an optimum does not lean on the passive stop torque). With
     ``out`` the outputs of ``torquesim optimise`` are written there. With a Dask ``client``
     each generation is scored on its workers (the same optimum as here).
     """
@@ -83,7 +97,8 @@ def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: st
         model = load_model(str(model))
     problem = OptimiseProblem(model, goals_of(model, maximise, minimise), method, step,
                               window, tuple(free), frozen, bounds, robust, timing_error,
-                              robust_mode)
+                              robust_mode, constraints=constraints_of(model, constrain),
+                              endstop_depth=endstop_depth)
     evaluate = None
     if client is not None:
         from .distributed import DaskScorer

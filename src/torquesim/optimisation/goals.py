@@ -3,12 +3,18 @@
 =====================================  =====================================================
 goal                                   value (SI; degrees only where printed)
 =====================================  =====================================================
-``jump_height``                        the centre of mass's apex above its start, m:
-                                       y(t_off) + max(v_y(t_off), 0)²/(2g) − y(0) at take-off
-                                       t_off (the first sample with every contact unloaded
-                                       after one was loaded; the flight is ballistic), or
-                                       max y − y(0) for a run that never leaves the ground
+``jump_height``                        the centre of mass's apex above its start, m: after
+                                       take-off t_off (the first sample with every contact
+                                       unloaded after one was loaded), the highest y in flight
+                                       − y(0) when the run reaches the apex in flight; a run
+                                       that ends in flight before it, y(t_off) +
+                                       max(v_y(t_off), 0)²/(2g) − y(0) (the flight is
+                                       ballistic); max y − y(0) for a run that never leaves
+                                       the ground. A run that touches down again before its
+                                       apex made no jump: undefined
 ``com_speed_at_takeoff``               |v_CoM| at take-off, m/s (undefined without one)
+``com_speed_x_at_takeoff``             v_CoM,x at take-off, m/s, forwards positive (the
+                                       drift a jump should not have; undefined without one)
 ``peak_speed:JOINT``                   max |q̇| of the joint over the run, rad/s
 ``speed_at:JOINT=ANGLE``               |q̇| when q first reaches ANGLE, rad/s
 ``time_to:JOINT=ANGLE``                the time q first reaches ANGLE, s (linear between
@@ -45,13 +51,15 @@ from ..errors import ModelError, check_range
 GOALS = {
     "jump_height": (False, False, "m", True),
     "com_speed_at_takeoff": (False, False, "m/s", True),
+    "com_speed_x_at_takeoff": (False, False, "m/s", True),
     "peak_speed": (True, False, "rad/s", False),
     "speed_at": (True, True, "rad/s", False),
     "time_to": (True, True, "s", False),
     "final_angle": (True, False, "rad", False),
     "effort": (False, False, "", False),
 }
-SYNTAX = ("jump_height, com_speed_at_takeoff, peak_speed:JOINT, speed_at:JOINT=ANGLE, "
+SYNTAX = ("jump_height, com_speed_at_takeoff, com_speed_x_at_takeoff, peak_speed:JOINT, "
+          "speed_at:JOINT=ANGLE, "
           "time_to:JOINT=ANGLE, final_angle:JOINT, effort (optionally W*GOAL)")
 _SPEC = re.compile(r"\s*(?:([0-9.eE+-]+)\s*\*)?\s*([a-z_]+)\s*(?::\s*([A-Za-z0-9_.\-]+)\s*"
                    r"(?:=\s*([-+0-9.eE]+)\s*(deg|rad)?)?)?\s*")
@@ -114,6 +122,26 @@ def take_off_index(grf_y: np.ndarray) -> int | None:
     return int(off[0]) if off.size else None
 
 
+def jump_height(trial: Trial, take_off: int | None) -> tuple[float, str]:
+    """(apex of the centre of mass above its start, m; "") or (NaN, why): the highest point in
+    flight when the run reaches its apex before touching down, the ballistic apex from
+    take-off when the run ends in flight before it, max y − y(0) without a take-off."""
+    y = trial.com_y
+    if take_off is None:
+        return float(np.max(y) - y[0]), ""
+    i = take_off
+    after = np.arange(y.size) > i
+    down = np.flatnonzero(after & (trial.grf_y > 0.0))
+    falling = np.flatnonzero(after & (trial.com_speed_y <= 0.0))
+    landing = int(down[0]) if down.size else None
+    if falling.size and (landing is None or falling[0] < landing):
+        return float(np.max(y[i:landing]) - y[0]), ""
+    if landing is not None:
+        return math.nan, "touched down again before its apex (no jump)"
+    flight = max(float(trial.com_speed_y[i]), 0.0) ** 2 / (2.0 * trial.gravity)
+    return float(y[i] + flight - y[0]), ""
+
+
 def _crossing(time, q, angle) -> tuple[int, float] | None:
     """(sample index before, fraction) where q first reaches ``angle`` (None: never)."""
     side = np.sign(q - angle)
@@ -174,16 +202,15 @@ class Goal:
         name = self.name
         if name == "effort":
             return float(np.sum(np.mean(trial.activations**2, axis=0))), ""
-        if name in ("jump_height", "com_speed_at_takeoff"):
+        if name in ("jump_height", "com_speed_at_takeoff", "com_speed_x_at_takeoff"):
             i = take_off_index(trial.grf_y)
-            if name == "com_speed_at_takeoff":
+            if name != "jump_height":
                 if i is None:
                     return math.nan, "no take-off"
+                if name == "com_speed_x_at_takeoff":
+                    return float(trial.com_speed_x[i]), ""
                 return float(math.hypot(trial.com_speed_x[i], trial.com_speed_y[i])), ""
-            if i is None:
-                return float(np.max(trial.com_y) - trial.com_y[0]), ""
-            flight = max(float(trial.com_speed_y[i]), 0.0) ** 2 / (2.0 * trial.gravity)
-            return float(trial.com_y[i] + flight - trial.com_y[0]), ""
+            return jump_height(trial, i)
         j = joints.index(self.joint)
         q, qd = trial.angles[:, j], trial.speeds[:, j]
         if name == "peak_speed":
@@ -260,3 +287,65 @@ def parse_goal(text: str, model, *, maximise: bool, field: str = "goal") -> Goal
                              "so the goal is met at t = 0; allowed: an angle the joint moves "
                              "to")
     return Goal(name, maximise, weight, joint, angle, label=text.strip())
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """A goal's value held within bounds: a candidate outside them is infeasible (the search
+    ranks it below every feasible one, nearer ones first).
+
+    Attributes
+    ----------
+    goal : Goal
+        What is constrained (its direction and weight are not used).
+    low, high : float
+        Bounds in the goal's SI unit (`GOALS`: m, m/s, s, rad, rad/s); ±inf for none.
+    """
+
+    goal: Goal
+    low: float = -math.inf
+    high: float = math.inf
+
+    def violation(self, value: float) -> float:
+        """How far ``value`` lies outside the bounds, in units of their width (or of the
+        bound's size, for one bound); 0 inside, inf for NaN."""
+        if not math.isfinite(value):
+            return math.inf
+        width = self.high - self.low
+        if not math.isfinite(width):
+            width = max(abs(b) for b in (self.low, self.high) if math.isfinite(b)) or 1.0
+        width = max(width, 1e-12)
+        return max(self.low - value, value - self.high, 0.0) / width
+
+    def shown(self) -> str:
+        """The bounds as the summary prints them."""
+        low = "" if self.low == -math.inf else self.goal.shown(self.low)
+        high = "" if self.high == math.inf else self.goal.shown(self.high)
+        return f"{low or '−∞'} to {high or '∞'}"
+
+
+def parse_constraint(text: str, model, field: str = "constrain") -> Constraint:
+    """``GOAL=LOW..HIGH`` (either bound may be left out: ``GOAL=..0.1``) → `Constraint`: GOAL
+    as `parse_goal`, the bounds in its unit, degrees (deg/s) for angles (angular speeds), e.g.
+    ``com_speed_x_at_takeoff=-0.1..0.1``, ``final_angle:elbow=..150``."""
+    goal_text, eq, bounds = text.rpartition("=")
+    low_text, dots, high_text = bounds.partition("..")
+    example = "com_speed_x_at_takeoff=-0.1..0.1"
+    if not eq or not dots or not goal_text.strip():
+        raise ModelError(field, f"{text!r}: allowed GOAL=LOW..HIGH, e.g. {example}")
+    goal = parse_goal(goal_text, model, maximise=False, field=field)
+    scale = 1.0 if goal.unit not in ("rad", "rad/s") else math.pi / 180.0
+    numbers = []
+    for part, missing in ((low_text, -math.inf), (high_text, math.inf)):
+        try:
+            value = float(part) * scale if part.strip() else missing
+        except ValueError:
+            value = math.nan
+        if math.isnan(value):
+            raise ModelError(field, f"{text!r}: {part.strip()!r} is not a number; allowed "
+                             f"GOAL=LOW..HIGH, e.g. {example}")
+        numbers.append(value)
+    low, high = numbers
+    if not low < high:
+        raise ModelError(field, f"{text!r}: allowed LOW < HIGH (or one bound left out)")
+    return Constraint(goal, low, high)

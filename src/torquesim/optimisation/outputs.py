@@ -16,7 +16,7 @@ from ..io.model_file import save_model
 from ..io.provenance import provenance
 from ..io.tables import write_table
 from .goals import Trial
-from .problem import OptimiseProblem
+from .problem import OptimiseProblem, endstop_depths
 from .search import OptimiseOutcome, OptimiseSettings
 
 MODEL_FILE = "optimised_model.toml"
@@ -81,6 +81,17 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
                         "the window (--window-*, --bound), free more parameters, or check that "
                         "the goal can change")
     effects = parameter_effects(problem, outcome)
+    limits = limit_report(problem, outcome, runs)
+    for entry in limits["endstops"]:
+        if entry["past_allowed"]:
+            warnings.append(f"the optimum re-simulated with the reference takes {entry['joint']} "
+                            f"{entry['depth_scales']:.2g} end-stop scales past its "
+                            f"{entry['stop_deg']:.1f}° stop (allowed {problem.endstop_depth:g}): "
+                            "the search's technique and step miss it; use a smaller --step")
+    for entry in limits["constraints"]:
+        if not entry["within"]:
+            warnings.append(f"the optimum re-simulated with the reference has {entry['goal']} "
+                            f"outside {entry['bounds']}")
     return {
         **provenance(),
         "model": problem.start_model.name,
@@ -95,6 +106,7 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
                    "min_level": problem.window.min_level},
         "free_parameters": int(problem.space.free.size),
         "moved_most": effects,
+        "limits": limits,
         "parameters": problem.space.table(outcome.x),
         "search": {"method": "CMA-ES (cmaes)", "seed": settings.seed,
                    "population": outcome.population, "sigma": settings.sigma,
@@ -109,6 +121,49 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
         "warnings": warnings,
         "_runs": runs,
     }
+
+
+def limit_report(problem: OptimiseProblem, outcome: OptimiseOutcome, runs: dict) -> dict:
+    """How close the optimum (re-simulated with the reference) sits to each limit: per joint
+    with end stops the stop it comes nearest, in degrees and end-stop scales (negative: inside)
+    with the passive stop torque there; per constraint its value and bounds; the free
+    parameters at a bound of their window."""
+    run = runs["optimum"]
+    model = problem.start_model
+    endstops = []
+    if run.success:
+        angles = run.q
+        depths = endstop_depths(model, angles)
+        columns = run.columns()
+        for k, joint in enumerate(model.joints):
+            if not np.isfinite(depths[k]):
+                continue
+            q = angles[:, k]
+            lower = joint.endstop_lower_angle - q.min() >= q.max() - joint.endstop_upper_angle
+            stop = joint.endstop_lower_angle if lower else joint.endstop_upper_angle
+            passive = np.abs(columns[f"torque_passive_{joint.name}"])
+            endstops.append({
+                "joint": joint.name, "stop_deg": round(math.degrees(stop), 6),
+                "closest_deg": float(math.degrees(q.min() if lower else q.max())),
+                "depth_scales": float(depths[k]),
+                "peak_passive_torque_nm": float(passive.max()),
+                "past_allowed": bool(depths[k] > problem.endstop_depth + 1e-9)})
+    constraints = []
+    trial = Trial.of(run) if run.success else None
+    for constraint in problem.constraints:
+        goal = constraint.goal
+        value = (math.nan if trial is None else float(goal.function(run))
+                 if goal.function is not None else goal.value(trial, problem.joint_names)[0])
+        constraints.append({"goal": goal.label, "value": value, "shown": goal.shown(value),
+                            "low": constraint.low, "high": constraint.high,
+                            "bounds": constraint.shown(),
+                            "within": constraint.violation(value) == 0.0})
+    space = problem.space
+    at_bound = [space.names[i] for i in space.free
+                if min(outcome.x[i] - space.lower[i], space.upper[i] - outcome.x[i])
+                <= 1e-6 * max(space.upper[i] - space.lower[i], 1e-12)]
+    return {"endstop_depth_allowed_scales": problem.endstop_depth, "endstops": endstops,
+            "constraints": constraints, "parameters_at_bounds": at_bound}
 
 
 def parameter_effects(problem: OptimiseProblem, outcome: OptimiseOutcome) -> list[dict]:
@@ -126,7 +181,7 @@ def parameter_effects(problem: OptimiseProblem, outcome: OptimiseOutcome) -> lis
     for k, i in enumerate(moved):
         rows[k, i] = outcome.start_x[i]
     simulations, failures = problem.simulations, problem.failures.copy()
-    values, reasons = problem.goal_values(rows)
+    values, reasons, _ = problem.goal_values(rows)
     problem.simulations, problem.failures = simulations, failures  # not the search's
     cost = problem.cost_of_values(values)
     gain = cost[-1] - cost[-2]
@@ -170,6 +225,24 @@ def summary_lines(summary: dict, problem: OptimiseProblem) -> list[str]:
         + (f"fails, {m['reverted_run_fails']}" if m["reverted_run_fails"]
            else f"{m['gain_lost_if_reverted_percent']:.0f} % of the gain lost") + ")"
         for m in summary["moved_most"][:3]))
+    limits = summary["limits"]
+    nearest = sorted(limits["endstops"], key=lambda e: -e["depth_scales"])[:3]
+    stops = "; ".join(
+        f"{e['joint']} {abs(e['closest_deg'] - e['stop_deg']):.1f}° "
+        f"{'past' if e['depth_scales'] > 0 else 'inside'} its {e['stop_deg']:.1f}° stop "
+        f"({e['peak_passive_torque_nm']:.1f} N·m passive)" for e in nearest)
+    if stops:
+        lines.append(f"end stops     {stops} (allowed: {limits['endstop_depth_allowed_scales']:g}"
+                     " stop scales past; --endstop-depth)")
+    for c in limits["constraints"]:
+        lines.append(f"constraint    {c['goal']} = {c['shown']} (bounds {c['bounds']}"
+                     f"{'' if c['within'] else ', NOT met'})")
+    free = summary["free_parameters"]
+    lines.append(f"window        {len(limits['parameters_at_bounds'])} of {free} free parameters "
+                 "at a bound" + (f" ({', '.join(limits['parameters_at_bounds'][:4])}"
+                                 f"{', …' if len(limits['parameters_at_bounds']) > 4 else ''}): "
+                                 "a wider window (--window-*, --bound) may gain more"
+                                 if limits["parameters_at_bounds"] else ""))
     search = summary["search"]
     failed = sum(summary["failed_simulations"].values())
     lines.append(f"search        CMA-ES, seed {search['seed']}, {search['generations']} "

@@ -11,11 +11,18 @@ refine it, in the one parameter-path vocabulary (``UNIT``, ``UNIT.rampK``,
 A candidate is simulated with the problem's technique and step (compiled, in parallel
 threads, `torquesim.optimisation.population`); it fails, with the reason counted, when its run
 is non-finite, diverges, breaks the RK4 stability limit (contacts always, units with explicit
-techniques), takes a joint more than `RANGE_MARGIN` end-stop scales beyond its end stops, or
-leaves a goal undefined. Its cost is the goals' combination (`torquesim.optimisation.goals`); a
-robust problem scores the worst (or mean) cost over the nominal run and ``robust`` copies
-with every ramp's onset moved by a random error in ±``timing_error`` (the same copies for
-every candidate, from ``perturbation_seed``).
+techniques), or leaves a goal undefined. Its cost is the goals' combination
+(`torquesim.optimisation.goals`); a robust problem scores the worst (or mean) cost over the
+nominal run and ``robust`` copies with every ramp's onset moved by a random error in
+±``timing_error`` (the same copies for every candidate, from ``perturbation_seed``).
+
+Limits are the user's: a candidate is infeasible when a joint goes more than
+``endstop_depth`` end-stop angle scales s_p past an end stop (default 0: an optimum may not
+lean on the passive stop torque, which reaches k_p at the stop angle and e·k_p one s_p past
+it), or a constraint's goal leaves its bounds (`Constraint`). An infeasible candidate costs
+`INFEASIBLE_COST` plus its violation (end-stop scales past the allowed depth, plus each
+constraint's distance outside its bounds in units of their width), so the search ranks it
+below every feasible one and nearer ones first.
 """
 
 from __future__ import annotations
@@ -45,13 +52,12 @@ from ..solvers import fixed_step as fs
 from ..solvers.coupling import default_coupling
 from ..solvers.techniques import FIT_METHODS
 from . import population as pop
-from .goals import Goal, Trial
+from .goals import Constraint, Goal, Trial
 
-#: A run fails when a joint goes more than this many end-stop angle scales s_p beyond an end
-#: stop (joints with end stops only).
-RANGE_MARGIN = 2.0
 #: Cost of a failed candidate (costs of usable ones are O(1): goals in units of the start's).
 FAILED_COST = 1.0e6
+#: Cost of an infeasible candidate, before its violation is added (`OptimiseProblem`).
+INFEASIBLE_COST = 1.0e3
 #: Candidates simulated per compiled call (bounds the memory of the stored motions).
 CHUNK = 64
 ROBUST_MODES = ("worst", "mean")
@@ -214,6 +220,11 @@ class OptimiseProblem:
         ``worst`` (default: the score is never better than the nominal run's) or ``mean``.
     perturbation_seed : int
         Seed of the copies' errors. Default 1.
+    constraints : tuple of Constraint
+        Goals held within bounds (`torquesim.optimisation.goals.parse_constraint`).
+    endstop_depth : float
+        How far a run may go past an end stop, in end-stop angle scales s_p. Default 0 (not
+        past the stop angle). Bounds [0, 20].
     """
 
     model: object = None
@@ -228,6 +239,8 @@ class OptimiseProblem:
     timing_error: float = 0.01
     robust_mode: str = "worst"
     perturbation_seed: int = 1
+    constraints: tuple = ()
+    endstop_depth: float = 0.0
     simulations: int = 0
     failures: Counter = field(default_factory=Counter)
 
@@ -244,6 +257,10 @@ class OptimiseProblem:
             raise TypeError("goals: expected Goal objects (parse_goal or Goal.custom)")
         check_range("robust", self.robust, 0, 1000)
         check_range("timing_error", self.timing_error, 0.0, 1.0, unit="s")
+        check_range("endstop_depth", self.endstop_depth, 0.0, 20.0)
+        self.constraints = tuple(self.constraints)
+        if not all(isinstance(c, Constraint) for c in self.constraints):
+            raise TypeError("constraints: expected Constraint objects (parse_constraint)")
         if self.robust_mode not in ROBUST_MODES:
             raise ModelError("robust_mode", f"{self.robust_mode!r}; allowed: "
                              f"{', '.join(ROBUST_MODES)}")
@@ -272,7 +289,7 @@ class OptimiseProblem:
         rng = np.random.default_rng(self.perturbation_seed)
         self.timing_errors = rng.uniform(-self.timing_error, self.timing_error,
                                          (self.robust, len(start.units), RAMPS_PER_UNIT))
-        values, reasons = self.goal_values(self.x0[None, :])
+        values, reasons, _ = self.goal_values(self.x0[None, :])
         if reasons[0]:
             raise ModelError("model", f"the starting model's run fails ({reasons[0]}) at "
                              f"step {self.step * 1e3:.4g} ms with {self.method}; allowed: a "
@@ -322,10 +339,6 @@ class OptimiseProblem:
                 result.append((None, RUN_REASONS[status[j]]))
                 continue
             angles = states[j, :, nb:n]
-            why = self._outside_range(angles)
-            if why:
-                result.append((None, why))
-                continue
             ground = {}
             if self.ground:
                 com_x, com_y = outputs[j, 2], outputs[j, 3]
@@ -336,32 +349,35 @@ class OptimiseProblem:
                                  activations[j].T, gravity=model.gravity, **ground), ""))
         return result
 
-    def _outside_range(self, angles) -> str:
-        for k, joint in enumerate(self.start_model.joints):
-            if joint.endstop_torque <= 0:
-                continue
-            margin = RANGE_MARGIN * joint.endstop_angle_scale
-            low, high = joint.endstop_lower_angle - margin, joint.endstop_upper_angle + margin
-            if angles[:, k].min() < low or angles[:, k].max() > high:
-                low, high = (math.degrees(a) for a in (joint.endstop_lower_angle,
-                                                        joint.endstop_upper_angle))
-                return f"{joint.name} left its range ({low:.0f} to {high:.0f} deg)"
-        return ""
-
     # ---- scoring -----------------------------------------------------------------------
-    def goal_values(self, population) -> tuple[np.ndarray, list[str]]:
+    def goal_values(self, population) -> tuple[np.ndarray, list[str], np.ndarray]:
         """Each goal's value (columns) on the nominal run of every row of ``population``
-        (full vectors), NaN where the run failed, and the reasons ("" when usable)."""
+        (full vectors), NaN where the run failed; the reasons ("" when usable); and each
+        row's violation of the limits (0: feasible; `OptimiseProblem`)."""
         population = np.atleast_2d(population)
         values = np.full((len(population), len(self.goals)), np.nan)
+        violations = np.zeros(len(population))
         reasons = []
         for r, (trial, why) in enumerate(self.trials(population)):
             if trial is not None:
                 why = self._fill(values[r], trial, population[r])
+                if not why:
+                    violations[r] = self._violation(trial, population[r])
             reasons.append(why)
             if why:
                 self.failures[why] += 1
-        return values, reasons
+        return values, reasons, violations
+
+    def _violation(self, trial, x) -> float:
+        """End-stop scales past the allowed depth plus each constraint's violation."""
+        deepest = float(np.max(endstop_depths(self.start_model, trial.angles), initial=-np.inf))
+        total = max(deepest - self.endstop_depth, 0.0)
+        for constraint in self.constraints:
+            goal = constraint.goal
+            value = (float(goal.function(self.run(x))) if goal.function is not None
+                     else goal.value(trial, self.joint_names)[0])
+            total += constraint.violation(value)
+        return total
 
     def _fill(self, row, trial, x) -> str:
         for g, goal in enumerate(self.goals):
@@ -408,10 +424,11 @@ class OptimiseProblem:
         `FAILED_COST`."""
         population = np.atleast_2d(population)
         copies = 1 + self.robust
-        values, _ = self.goal_values(self.expand(population))
+        values, _, violations = self.goal_values(self.expand(population))
         values = values.reshape(len(population), copies, len(self.goals))
         costs = self.cost_of_values(values.reshape(-1, len(self.goals))).reshape(
             len(population), copies)
+        violation = violations.reshape(len(population), copies).max(axis=1)
         failed = ~np.isfinite(values).all(axis=(1, 2))
         if self.robust_mode == "worst":
             cost = costs.max(axis=1)
@@ -421,5 +438,19 @@ class OptimiseProblem:
         else:
             cost = costs.mean(axis=1)
             robust = values.mean(axis=1)
+        cost = np.where(violation > 0, INFEASIBLE_COST + np.minimum(violation, 1e5), cost)
         cost = np.where(failed, FAILED_COST, cost)
         return cost, values[:, 0], robust
+
+
+def endstop_depths(model: ChainModel, angles) -> np.ndarray:
+    """How far each joint went past its end stops over a run (``angles``: samples × joints,
+    rad), in end-stop angle scales s_p: max((θ_lo − min q), (max q − θ_hi))/s_p; negative
+    when it stayed inside, −inf for a joint without end stops."""
+    out = np.full(model.n_joints, -np.inf)
+    for k, joint in enumerate(model.joints):
+        if joint.endstop_torque > 0:
+            q = angles[:, k]
+            out[k] = max(joint.endstop_lower_angle - q.min(),
+                         q.max() - joint.endstop_upper_angle) / joint.endstop_angle_scale
+    return out
