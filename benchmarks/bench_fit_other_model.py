@@ -29,6 +29,22 @@ from torquesim.io.provenance import load_average
 from torquesim.model.activation import ActivationDynamics, ActivationProfile, Ramp
 
 
+def weaker_model(model: ts.ChainModel) -> ts.ChainModel:
+    """``model`` with every unit 10 % weaker, its optimal angle 0.1 rad later and other
+    activation timings: no activation dynamics, so the fitted model's family is closer."""
+    units = []
+    for k, unit in enumerate(model.units):
+        ramps = tuple(Ramp(r.delay * (1.1 if k % 2 else 0.9), r.duration * 1.05, r.level)
+                      for r in unit.activation.ramps)
+        p = unit.parameters
+        parameters = replace(p, isometric_torque=0.9 * p.isometric_torque,
+                             eccentric_torque_max=0.9 * p.eccentric_torque_max,
+                             optimal_angle=p.optimal_angle + 0.1)
+        units.append(replace(unit, parameters=parameters, activation=ActivationProfile(
+            unit.activation.initial_level, ramps)))
+    return model.replace(units=tuple(units))
+
+
 def other_model(model: ts.ChainModel) -> ts.ChainModel:
     """``model`` with other muscle physics and other activation timings (module docstring)."""
     units = []
@@ -65,12 +81,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jacobian", choices=("forward", "central", "both"), default="both")
     parser.add_argument("--write-target", help="also write the target as a .mot file here")
+    parser.add_argument("--target", choices=("activation-dynamics", "weaker"),
+                        default="activation-dynamics",
+                        help="the other model: activation dynamics and stiffer SE, or every "
+                             "unit 10 %% weaker with its optimal angle moved")
     parser.add_argument("--iterations", type=int, default=SearchSettings().iterations,
                         help="residual evaluations of the refining least squares (its cap)")
     args = parser.parse_args()
     print(f"load average at start: {load_average():.2f} (2 cores)")
     model = ts.load_model("builtin:arm-raise")
-    run = ts.simulate(other_model(model), "reference", output_step=0.01)
+    made_by = other_model if args.target == "activation-dynamics" else weaker_model
+    run = ts.simulate(made_by(model), "reference", output_step=0.01)
     target = Target(run.time, run.q.T, tuple(j.name for j in model.joints), "other-model")
     if args.write_target:
         from torquesim.io.tables import write_table

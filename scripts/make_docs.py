@@ -3,8 +3,10 @@
     python scripts/make_docs.py            # the study on the default curl and its sensitivity
                                            # to the SE stiffness (~15 min on 2 cores)
     python scripts/make_docs.py --check    # only check that every page holds its generated
-                                           # blocks (scripts/docblocks.py) and that the cheap
+                                           # blocks (scripts/docblocks.py), that the cheap
                                            # ones (techniques, presets' motions) are current
+                                           # and that the optima of docs/optimise.md regenerate
+                                           # within their stated spread (~1 min)
     python scripts/make_docs.py --jump     # only the study on the squat jump (~3 min)
     python scripts/make_docs.py --presets  # only the presets' motions (docs/presets.md)
 
@@ -169,6 +171,35 @@ def jump_blocks(torquesim, tmp: Path) -> dict[str, str]:
             "jump-stiffness": stiffness_block()}
 
 
+#: Slack around the stated spread of an optimum, relative (the spread is measured with the
+#: kernel sets of one CPU; another CPU's own may land just outside).
+SPREAD_SLACK = 2e-3
+
+
+def check_optimise_spread() -> list[str]:
+    """Regenerate the curl's and the plain jump's optimum of docs/optimise.md (seed 1, on this
+    machine) and hold each to the spread across OpenBLAS kernel sets that
+    docs/data/optimise_spread.json states (`benchmarks/bench_optimise.py` part 4)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_optimise import SPREAD_CASES, SPREAD_FILE, optimum_in_process
+
+    stated = json.loads(SPREAD_FILE.read_text())
+    problems = []
+    for case, (_, _, goal, scale) in SPREAD_CASES.items():
+        low, high = stated[case]["low"], stated[case]["high"]
+        value = optimum_in_process(case)
+        slack = SPREAD_SLACK * max(abs(low), abs(high))
+        if value is None or not low - slack <= value <= high + slack:
+            problems.append(f"docs/optimise.md: the {case} optimum ({goal}) regenerated here is "
+                            f"{'a failed run' if value is None else f'{value * scale:.2f}'}, "
+                            f"outside the stated {low * scale:.2f}–{high * scale:.2f}; run "
+                            "python benchmarks/bench_optimise.py --write-docs")
+        else:
+            print(f"{case}: optimum {value * scale:.2f} within the stated "
+                  f"{low * scale:.2f}–{high * scale:.2f}")
+    return problems
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
@@ -199,6 +230,10 @@ def main() -> None:
                  "python scripts/make_docs.py --presets")
     if stale:
         write_blocks("docs/presets.md", {name: motions[name] for name in stale})
+    if args.check:
+        problems = check_optimise_spread()
+        if problems:
+            sys.exit("\n".join(problems))
     if args.check or args.presets:
         return
     from torquesim.cli import main as torquesim

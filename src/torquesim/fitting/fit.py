@@ -128,6 +128,8 @@ class FitOutcome:
     polish_done: int
     interrupted: bool
     history: list = field(default_factory=list)  # (simulations, wall time, best score)
+    #: The budget the last search stage stopped on instead of its tolerance ("" if none).
+    capped: str = ""
 
 
 def fingerprint(problem: FitProblem) -> str:
@@ -267,7 +269,7 @@ def fit_to_accuracy(problem: FitProblem, settings: SearchSettings = SearchSettin
                              outcome.wall_time + more.wall_time, outcome.generations_done,
                              outcome.polish_done, more.interrupted,
                              outcome.history + [[h[0], h[1] + outcome.wall_time, h[2]]
-                                                for h in more.history])
+                                                for h in more.history], more.capped)
         problem = finer
     return problem, outcome, refinements
 
@@ -348,7 +350,8 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
                       np.array(state["initial_x"]), float(state["initial_score"]),
                       problem.simulations, problem.failed_simulations, run.elapsed(),
                       int(state["generations_done"]), int(state["polish_done"]),
-                      run.interrupted, [list(h) for h in state["history"]])
+                      run.interrupted, [list(h) for h in state["history"]],
+                      str(state.get("capped", "")))
 
 
 class _Run:
@@ -523,6 +526,8 @@ class _Run:
             self.record()
             return
         self.keep(result.x, float(np.sqrt(2.0 * result.cost)))
+        state["capped"] = (f"the refining least squares' {settings.iterations} residual "
+                           "evaluations (--iterations)" if result.status == 0 else "")
         self.record()
         self.say(f"least squares  refined: {np.sqrt(2.0 * result.cost):.4f} deg "
                  f"({result.message}), {problem.simulations} simulations, "

@@ -51,6 +51,10 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
                         f"({ref_errors[worst][0]:.3f} vs {errors[worst][0]:.3f} deg RMS, more "
                         f"than {AGREEMENT_FRACTION:.0%} or {AGREEMENT_DEG:g} deg): the fit "
                         "leans on the integrator's error; use a smaller --step")
+    if outcome.capped:
+        warnings.append(f"the search stopped on {outcome.capped}, not on its tolerance: the "
+                        "fit may still improve; run it again with a larger --iterations "
+                        "(e.g. twice) and --overwrite")
     if fitted.message:  # stability limit broken, or activation ramps not resolved
         warnings.append(fitted.message)
     free = set(problem.space.free.tolist())
