@@ -2,6 +2,7 @@
 on the command line, a ModelError or TypeError in Python), and nothing is written or damaged.
 """
 
+import re
 from pathlib import Path
 
 import pytest
@@ -283,7 +284,7 @@ def test_an_unknown_model_name_lists_the_presets(capsys, tmp_path):
 
 @pytest.mark.parametrize("old, new, field", [
     ("gravity = 9.81", "gravity = 0", "gravity"),
-    ("stiffness = 5000000.0", "stiffness = 1e-300", "joints.initial_angle"),
+    ("stiffness = 5000000.0", "stiffness = 1e-300", "contacts[0].stiffness"),
 ])
 def test_a_body_that_cannot_stand_is_one_error_without_warnings(tmp_path, old, new, field):
     """Without gravity, or on contacts too soft to hold the body, there is no standing start:
@@ -296,7 +297,7 @@ def test_a_body_that_cannot_stand_is_one_error_without_warnings(tmp_path, old, n
     path.write_text(text.replace(old, new, 1))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        with pytest.raises(ts.ModelError, match=f"^{field}: "):
+        with pytest.raises(ts.ModelError, match=f"^{re.escape(field)}: "):
             ts.simulate(ts.load_model(path), "imex", 2.5e-4, duration=0.05)
     assert [str(w.message) for w in caught] == []
 

@@ -386,7 +386,8 @@ def test_a_fit_reports_the_error_of_the_model_it_writes(synthetic_target):
     joint = summary["joints"]["elbow"]
     assert abs(joint["reference_rms_error_deg"] - joint["rms_error_deg"]) <= max(
         0.1 * joint["rms_error_deg"], 0.02)
-    assert not summary["warnings"]
+    # no warning of a disagreement (30 iterations may end on the cap: that one is said apart)
+    assert not [w for w in summary["warnings"] if "stopped on" not in w]
     assert any(line.startswith("step          refined 50 ms") for line in summary_lines(summary))
 
 

@@ -328,8 +328,9 @@ def model_from_dict(data: dict) -> ChainModel:
         kwargs["base"] = _text("base", data["base"])
     # Every field present before the whole-model checks (a missing length would otherwise
     # show as a posture that cannot stand): a joint at the default place needs that place.
+    # (Parents are found by name: with duplicate names the model's own check speaks first.)
     names = [seg.name for seg in segments]
-    for k, seg in enumerate(segments[1:], start=1):
+    for k, seg in enumerate(segments[1:] if len(set(names)) == len(names) else [], start=1):
         p = names.index(seg.parent) if seg.parent in names[:k] else k - 1
         if seg.parent_distance is None and "length" not in data["segments"][p]:
             raise ModelError(f"segments[{p}].length", "is missing: the distance to the next "
