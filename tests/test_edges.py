@@ -134,8 +134,9 @@ def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, 
 
     sweep_module = importlib.import_module("torquesim.batch.sweep")
     import torquesim.fitting.outputs as fit_outputs
-    import torquesim.optimisation.outputs as optimise_outputs
+    import torquesim.optimisation as optimisation
     import torquesim.study.outputs as study_outputs
+    from torquesim.fitting.problem import default_step, fit_step
     from torquesim.solvers.simulation import step_count
 
     model = ts.load_model(f"builtin:{preset}")
@@ -159,8 +160,14 @@ def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, 
     with pytest.raises(_Reached):
         main(["fit", *spec, "--quiet", "--out", str(tmp_path / "fit")])
 
+    def optimise_check(chain, goals, method, step, *_, **__):
+        # the optimisation's defaults, resolved as OptimiseProblem does (its compiled search
+        # kernels are tested in test_optimise.py)
+        assert goals and method == "imex" and step is None
+        fit_step(chain.duration, default_step(chain))
+
     goal = "jump_height" if model.contacts else f"peak_speed:{model.joints[-1].name}"
-    _stop_at(monkeypatch, optimise_outputs, "optimise_and_write", lambda *a, **k: None)
+    _stop_at(monkeypatch, optimisation, "OptimiseProblem", optimise_check)
     with pytest.raises(_Reached):
         main(["optimise", *spec, "--maximise", goal, "--quiet", "--out",
               str(tmp_path / "opt")])

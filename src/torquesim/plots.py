@@ -285,6 +285,8 @@ def animate_result(result, path, *, fps: int = 25) -> None:
     ax.set_title(f"{result.model.name}, {result.method}"
                  + (f", {speed:.3g}× real time" if speed > 1.0 + 1e-9 else ""),
                  fontsize="medium")
+    fig.canvas.draw()  # lay the figure out once: every frame has the same layout
+    fig.set_layout_engine("none")
     movie = animation.FuncAnimation(fig, frame, frames=len(times), blit=True)
     import os
     from pathlib import Path
