@@ -23,7 +23,6 @@ import numpy as np
 
 import torquesim as ts
 from torquesim.fitting import FitProblem, SearchSettings, Target
-from torquesim.fitting import fit as fit_module
 from torquesim.fitting.fit import fit_to_accuracy
 from torquesim.io.provenance import load_average
 from torquesim.model.activation import ActivationDynamics, ActivationProfile, Ramp
@@ -61,7 +60,6 @@ def other_model(model: ts.ChainModel) -> ts.ChainModel:
 
 
 def fit_once(model, target, scheme: str, settings) -> dict:
-    fit_module.JACOBIAN_SCHEME = scheme
     problem = FitProblem(target, base_model=model)
     problem.evaluate(np.array([problem.space.upper]))  # compile outside the timing
     problem.simulations = 0
@@ -100,7 +98,8 @@ def main() -> None:
             j.coordinate: run.angle(j.name) for j in model.joints}}, name="other-model")
     schemes = ("forward", "central") if args.jacobian == "both" else (args.jacobian,)
     for scheme in schemes:
-        got = fit_once(model, target, scheme, SearchSettings(iterations=args.iterations))
+        got = fit_once(model, target, scheme, SearchSettings(iterations=args.iterations,
+                                                              jacobian=scheme))
         rms = ", ".join(f"{j} {v:.3f}°" for j, v in got["rms"].items())
         print(f"{scheme:8s} RMS (reference) {rms}; {got['simulations']} simulations, "
               f"{got['wall']:.1f} s, final step {got['step_ms']:.3g} ms")

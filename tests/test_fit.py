@@ -227,6 +227,12 @@ def test_jacobian_agrees_with_central_differences_of_the_simulator(synthetic_tar
     assert np.linalg.norm(jac - reference) <= 2e-5 * np.linalg.norm(reference)
     at, _ = problem.residuals(x)
     np.testing.assert_array_equal(run.jacobian(x.copy(), at[0]), jac)
+    central = _Run(problem, SearchSettings(jacobian="central"), None, lambda _m: None, None,
+                   lambda: False)
+    central.state = {"initial_x": x}
+    # second order: closer to the reference than the forward differences' 2.4e-6
+    assert np.linalg.norm(central.jacobian(x.copy()) - reference) <= 1e-6 * np.linalg.norm(
+        reference)
     # all but the ramps that start after the 1.5 s target ends move the motion
     assert np.count_nonzero(np.linalg.norm(reference, axis=0)) >= 15
 

@@ -40,7 +40,7 @@ SEARCHES = ("least-squares", "global")
 #: Difference step of the Jacobian (s for delays and durations, activation for levels):
 #: forward, backward where the upper bound is closer.
 DIFFERENCE_STEP = 1e-6
-JACOBIAN_SCHEME = "forward"
+JACOBIANS = ("forward", "central")
 #: Residual evaluations each least-squares start gets before the best one is refined: at
 #: least `SCREEN_EVALUATIONS`, and one per `SCREEN_PARAMETERS_PER_EVALUATION` free
 #: parameters (`screen_evaluations`).
@@ -86,6 +86,11 @@ class SearchSettings:
         Optional wall-time cap, s (the fit then depends on machine speed). Default None.
     checkpoint_every : float
         Seconds between checkpoints. Default 10.
+    jacobian : str
+        Least squares: the Jacobian's differences, ``forward`` (default: one simulation per
+        free parameter, reusing the residual just evaluated) or ``central`` (two, accurate
+        to second order; torquesim 0.2.0's). Measured on targets other muscle models made
+        (`benchmarks/bench_fit_other_model.py`): no better fit for twice the simulations.
     """
 
     search: str = "least-squares"
@@ -97,8 +102,11 @@ class SearchSettings:
     polish_simulations: int = 4000
     max_time: float | None = None
     checkpoint_every: float = 10.0
+    jacobian: str = "forward"
 
     def __post_init__(self) -> None:
+        if self.jacobian not in JACOBIANS:
+            raise ModelError("jacobian", f"{self.jacobian!r}; allowed: {', '.join(JACOBIANS)}")
         if self.search not in SEARCHES:
             raise ModelError("search", f"{self.search!r}; allowed: {', '.join(SEARCHES)}")
         check_range("seed", self.seed, 0, 2**32 - 1)
@@ -428,13 +436,13 @@ class _Run:
         return np.array(points)
 
     def jacobian(self, z, at=None) -> np.ndarray:
-        """∂r/∂z by differences, in parallel: central (`JACOBIAN_SCHEME`, 2·len(z)
+        """∂r/∂z by differences (`SearchSettings.jacobian`), in parallel: central (2·len(z)
         simulations; one-sided at a bound) or forward (len(z) simulations; backward where the
         upper bound is closer than the difference step; ``at`` is r(z) when already known,
         else it is simulated too). A column whose run fails is 0."""
         lo = np.array(self.space.lower)[self.free]
         hi = np.array(self.space.upper)[self.free]
-        if JACOBIAN_SCHEME == "central":
+        if self.settings.jacobian == "central":
             plus = np.minimum(z + DIFFERENCE_STEP, hi)
             minus = np.maximum(z - DIFFERENCE_STEP, lo)
             rows = np.empty((2 * z.size, self.space.size))
