@@ -44,9 +44,13 @@ def test_partitioned_is_first_order_accurate_and_wrong_by_model_md_amount(model,
 
 @pytest.mark.parametrize("method", ["monolithic", "partitioned", "reference"])
 def test_static_equilibrium_stays_put(method):
+    """Held in equilibrium, nothing moves (to 1e-9). Radau rests on the force-velocity
+    relation's kink at ω_cc = 0 and chatters there (12 891 steps, 21 s for 1 s of rest), so
+    the reference is held for 0.2 s."""
     m = ts.default_model().replace(flexor_activation=ts.ActivationProfile(None),
                                    extensor_activation=ts.ActivationProfile(0.1),
-                                   initial_angle=math.radians(70), duration=1.0)
+                                   initial_angle=math.radians(70),
+                                   duration=0.2 if method == "reference" else 1.0)
     result = ts.simulate(m, method, 1e-4)
     assert np.max(np.abs(result.states - result.states[0])) < 1e-9
 
