@@ -1148,9 +1148,9 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
     doubtful = table[table["accuracy"].isin(["inaccurate", "unstable"])]
     refined = int(((table["step_s"] < step * (1 - 1e-9)) & (table["accuracy"] == "ok")).sum())
     click.echo(f"{len(table)} samples: {counts.get('ok', 0)} accurate (estimated error within "
-               f"{tolerance:g}°; {refined} of them re-run at a halved step, as the step_s "
+               f"{tolerance:g}°; {refined} of them re-run at a smaller step, as the step_s "
                f"column gives), {counts.get('inaccurate', 0)} inaccurate and "
-               f"{counts.get('unstable', 0)} beyond the stability limit at "
+               f"{counts.get('unstable', 0)} beyond the stability limit even at "
                f"{step / 2**MAX_REFINEMENTS * 1e3:.3g} ms, {failed} failed; wrote "
                f"{out_dir}/sweep.csv, sweep.png, sweep_percentiles.csv, rank_correlations.csv, "
                "sweep.html")

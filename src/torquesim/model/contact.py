@@ -65,7 +65,8 @@ class GroundContact:
         Name of the point in contact.
     stiffness : float
         k, N/mⁿ. Bounds (0, 1e9]. Default 5e6: with n = 1.5 a 70 kg body standing on two
-        such points sinks 1.7 mm.
+        such points sinks 1.7 mm. A model refuses contacts so soft that its body, the weight
+        shared alike, would sink more than `chain.MAX_STANDING_SINK` (5 cm) standing.
     exponent : float
         n. Default 1.5 (Hertzian contact). Bounds [1, 3].
     damping : float
