@@ -305,3 +305,13 @@ def test_optimise_options_are_named_in_their_errors(tmp_path, capsys, argv, opti
     err = _error_line(capsys, ["optimise", *goal, *argv, "--out", str(out), "--quiet"])
     assert err.startswith(f"error: {option}"), err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("model", ["builtin:elbow-curl", "builtin:squat-jump"])
+def test_a_column_map_on_a_built_in_motion_is_refused(tmp_path, capsys, model):
+    """--column grf_y=nosuch on the squat jump's built-in motion was ignored and the fit ran."""
+    out = tmp_path / "fit"
+    err = _error_line(capsys, ["fit", "--model", model, "--column", "grf_y=nosuch", "--out",
+                               str(out), "--quiet"])
+    assert err.startswith("error: --column:") and "--target file" in err
+    assert not out.exists()

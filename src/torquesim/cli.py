@@ -724,7 +724,10 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
         target_spec = "builtin:curl" if own == "elbow-curl" else model_path
     column_map = (columns[0] if len(columns) == 1 and "=" not in columns[0]
                   else _parse_pairs(columns, "--column", "elbow=r_elbow_flex"))
-    target = load_target(target_spec, base, column_map, units)
+    try:
+        target = load_target(target_spec, base, column_map, units)
+    except ModelError as exc:
+        raise _as_option(exc, {"column": "--column"}) from None
     if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt"):
         for joint, angle in zip(target.joints, target.angles, strict=True):
             if np.max(np.abs(np.degrees(angle))) <= math.pi:

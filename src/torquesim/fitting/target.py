@@ -256,6 +256,9 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
     chain = as_chain(model) if model is not None else preset("builtin:elbow-curl")
     joint_names = [j.name for j in chain.joints]
     if spec.startswith("builtin:"):
+        if columns:
+            raise ModelError("column", f"{spec} is a built-in motion with the model's own "
+                             "joints and channels; allowed: --column only with a --target file")
         name = spec.split(":", 1)[1]
         if name not in BUILTIN_TARGETS:
             raise ModelError("target", f"{spec!r}; allowed: "
