@@ -273,8 +273,11 @@ def optimise_notes(summary: dict) -> list[str]:
             f"generations, {summary['simulations']} simulations{extra}; window ±"
             f"{summary['window']['delay_s'] * 1e3:g} ms on delays, ±"
             f"{summary['window']['duration_fraction']:.0%} on durations, ±"
-            f"{summary['window']['level_fraction']:.0%} on levels; the notes below are the "
-            "starting model's."]
+            f"{summary['window']['level_fraction']:.0%} on levels; "
+            + "".join(f"constraint {c['goal']} within {c['bounds']} (optimum {c['shown']}); "
+                      for c in summary["limits"]["constraints"])
+            + f"runs at most {summary['limits']['endstop_depth_allowed_scales']:g} end-stop "
+            "scales past a stop; the notes below are the starting model's."]
 
 
 def write_outputs(out_dir, problem: OptimiseProblem, outcome: OptimiseOutcome,
