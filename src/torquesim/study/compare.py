@@ -68,8 +68,15 @@ def default_steps(model: ChainModel) -> tuple[float, ...]:
     from ..solvers.simulation import divisor_step
 
     duration = model.duration
-    dividing = [h for h in DEFAULT_STEPS if h <= duration and abs(
-        round(duration / h) * h - duration) <= 1e-9]
+
+    def divides(h: float) -> bool:
+        try:
+            step_count(duration, h)
+        except ModelError:
+            return False
+        return True
+
+    dividing = [h for h in DEFAULT_STEPS if divides(h)]
     if len(dividing) >= MIN_DEFAULT_STEPS:
         return tuple(dividing)
     return tuple(sorted({divisor_step(duration, h) for h in DEFAULT_STEPS if h <= duration},
