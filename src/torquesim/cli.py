@@ -790,6 +790,150 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
     return 0
 
 
+@cli.command(short_help="Fit a unit's strength to dynamometer trials.")
+@click.argument("trials", nargs=-1, type=click.Path(dir_okay=False))
+@click.option("--model", "model_path", default="builtin:knee-extension", show_default=True,
+              help="The model whose unit is fitted: a TOML file or one of " + preset_list()
+              + ". Trial angles are its joint's angles (its zero and sign).")
+@click.option("--unit", "unit_name", default=None,
+              help="The unit fitted (e.g. knee_extensor). Default: the model's only unit, or "
+              "the first unit whose direction matches the trials' torque.")
+@click.option("--angle-units", "units", type=click.Choice(["deg", "rad"]), default=None,
+              help="Units of angle and velocity in CSV trials. Default: deg (a .sto/.mot "
+              "file's inDegrees decides).")
+@click.option("--torque-sign", type=click.Choice(["joint", "unit"]), default="joint",
+              show_default=True,
+              help="joint: torque positive towards increasing joint angle; unit: positive "
+              "in the unit's own direction (a magnitude, as many dynamometers export).")
+@click.option("--passive", "passive_path", type=click.Path(dir_okay=False), default=None,
+              help="A passive trial (relaxed limb moved through the range): its torque, "
+              "fitted as A cos θ + B sin θ + C, is removed from every trial.")
+@click.option("--gravity", "gravity", default=None, metavar="MOMENT@ANGLE",
+              help="Instead of --passive: the gravity torque of limb and crank is "
+              "MOMENT·cos(θ − ANGLE), N·m and degrees (e.g. -35@90).")
+@click.option("--se-stiffness", type=click.FloatRange(0.0, 1e6, min_open=True), default=None,
+              help="SE stiffness k (N·m/rad) for the CE angle θ_cc = θ ± T/k. Default: the "
+              "unit's.")
+@click.option("--hold", "held", multiple=True, metavar="NAME=VALUE",
+              help="Hold a parameter (SI units) instead of fitting it, e.g. "
+              "max_velocity=22 from an independent estimate.")
+@click.option("--above-weight", default="auto", show_default=True,
+              help="Weight of samples above the fitted function (Forrester et al. 2011): a "
+              "number in [1, 100], or auto (1 unless the residuals are one-sided, then 4).")
+@click.option("--velocity-tolerance", type=click.FloatRange(0.0, 0.5, min_open=True),
+              default=0.05, show_default=True,
+              help="Constant-velocity phase: within this fraction of the set speed (and at "
+              "least 2 deg/s).")
+@click.option("--plateau", type=click.FloatRange(0.0, 1.0, min_open=True), default=0.95,
+              show_default=True,
+              help="Isometric trials: samples at or above this fraction of the peak torque.")
+@click.option("--starts", type=click.IntRange(1, 200), default=8, show_default=True,
+              help="Local searches (from the unit, the data and a Latin hypercube).")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
+              help="Seed of the Latin hypercube.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="strength-out",
+              show_default=True, help="Output directory.")
+@click.option("--overwrite", is_flag=True, help="Replace an earlier strength fit in --out.")
+@click.option("--quiet", is_flag=True, help="No progress lines.")
+def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gravity,
+             se_stiffness, held, above_weight, velocity_tolerance, plateau, starts, seed,
+             out_dir, overwrite, quiet):
+    """Fit a unit's maximum voluntary torque T(θ, ω) to isovelocity dynamometer trials.
+
+    TRIALS are files (CSV, .sto or .mot), one per trial, with columns time (s), angle,
+    velocity (optional) and torque (N·m): isometric trials at several angles, and
+    concentric and eccentric isovelocity trials. Writes the model with the fitted unit, a
+    table of the samples used, a figure and a summary (docs/strength.md).
+    """
+    _quiet_compiling(quiet)
+    import time
+
+    from .fitting.strength import PassiveTorque, StrengthSettings, fit_strength
+    from .fitting.strength_outputs import (
+        STRENGTH_FILES,
+        strength_summary,
+        summary_lines,
+        write_strength,
+    )
+    from .io.dynamometer import read_trial
+    from .io.model_file import load_model
+
+    if not trials:
+        raise ModelError("TRIALS", "no trial files given; allowed: one or more .csv, .sto or "
+                         ".mot files (examples/dynamometer/ has some)")
+    out = _search_folder(out_dir, False, overwrite, STRENGTH_FILES, "strength fit")
+    model = load_model(model_path)
+    names = [u.name for u in model.units]
+    if unit_name is not None and unit_name not in names:
+        raise ModelError("--unit", f"{unit_name!r}; allowed: {', '.join(names)}")
+    if passive_path is not None and gravity is not None:
+        raise ModelError("--gravity", "contradicts --passive; allowed: one of them")
+    weight = above_weight
+    if above_weight != "auto":
+        try:
+            weight = float(above_weight)
+        except ValueError:
+            raise ModelError("--above-weight", f"{above_weight!r}; allowed: auto or a number "
+                             "in [1, 100]") from None
+    hold = {name: value for name, (value,) in _parse_assignments(held, "--hold", 1).items()}
+    try:
+        settings = StrengthSettings(velocity_tolerance=velocity_tolerance, plateau=plateau,
+                                    above_weight=weight, se_stiffness=se_stiffness, hold=hold,
+                                    starts=starts, seed=seed)
+    except ModelError as exc:
+        raise _as_option(exc, {"above_weight": "--above-weight", "hold": "--hold"}) from None
+    passive = PassiveTorque()
+    if gravity is not None:
+        moment, at, angle = gravity.partition("@")
+        try:
+            passive = PassiveTorque.given(float(moment), math.radians(float(angle)))
+        except ValueError:
+            raise ModelError("--gravity", f"{gravity!r}; allowed MOMENT@ANGLE in N·m and "
+                             "degrees, e.g. -35@90") from None
+    unit = _strength_unit(model, unit_name, trials, units, torque_sign)
+    read = [read_trial(path, units, torque_sign, unit.direction) for path in trials]
+    if passive_path is not None:
+        passive = PassiveTorque.from_trial(read_trial(passive_path, units, torque_sign,
+                                                      unit.direction, field="--passive"))
+    say = (lambda message: None) if quiet else (lambda message: click.echo(message, err=True))
+    started = time.perf_counter()
+    fit = fit_strength(read, unit.parameters, unit.direction, settings, passive, progress=say)
+    summary = strength_summary(fit, unit=unit.name, model=model_path,
+                               trials=[Path(t).name for t in trials], passive=passive,
+                               settings=settings, wall_time=time.perf_counter() - started)
+    out.mkdir(parents=True, exist_ok=True)
+    files = write_strength(out, fit, model, unit.name, summary)
+    click.echo("\n".join(summary_lines(summary)))
+    click.echo(f"wrote {out_dir}/: {', '.join(files)}")
+    return 0
+
+
+def _strength_unit(model, unit_name, trials, units, torque_sign):
+    """The unit a strength fit is for: ``unit_name``, the model's only unit, or the first unit
+    whose direction matches the sign of the first trial's largest torque (with
+    --torque-sign joint)."""
+    from .io.dynamometer import read_trial
+
+    if unit_name is not None:
+        return next(u for u in model.units if u.name == unit_name)
+    if len(model.units) == 1:
+        return model.units[0]
+    if torque_sign == "unit":
+        raise ModelError("--unit", "required with --torque-sign unit when the model has "
+                         f"several units; allowed: {', '.join(u.name for u in model.units)}")
+    import numpy as np
+
+    first = read_trial(trials[0], units)
+    sign = 1 if first.torque[int(np.argmax(np.abs(first.torque)))] > 0 else -1
+    matching = [u for u in model.units if u.direction == sign]
+    if not matching:
+        raise ModelError("--unit", f"no unit of {model.name} pulls towards "
+                         f"{'in' if sign > 0 else 'de'}creasing angle, as the torque of "
+                         f"{Path(trials[0]).name} does; allowed: "
+                         + ", ".join(u.name for u in model.units))
+    return matching[0]
+
+
 @cli.command(short_help="Optimise a performance: activation ramps for a goal.")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
               help="Starting model: a TOML file (e.g. a fit's fitted_model.toml) or "

@@ -448,3 +448,65 @@ def plot_comparison(start, optimum, *, title: str = "", poses: int = 8):
         ax_pose.set_ylabel("y (m)")
     fig.suptitle(textwrap.fill(title or f"torquesim optimise: {model.name}", 90))
     return fig
+
+
+def plot_strength_fit(phases, parameters, *, title: str = ""):
+    """The figure of a strength fit: the data and the fitted maximum voluntary torque.
+
+    ``phases`` is a list of dicts, one per trial phase: ``label``, ``theta_cc`` (rad),
+    ``omega_cc`` (rad/s), ``angle`` (joint, rad), ``torque`` (measured unit torque, N·m) and
+    ``fitted`` (T_mv at the samples, N·m); ``parameters`` the fitted `TorqueGeneratorUnit`.
+    Panels: torque against joint angle (data as dots, the fit as a line, one colour per
+    phase); against CE velocity with T_mv at the optimal angle; the surface T_mv(θ_cc, ω_cc)
+    with the samples on it; the residuals (data − fit) against CE velocity."""
+    from .model.torque_generator import maximum_voluntary_torque
+
+    fig = _figure((11.0, 8.8))
+    axes = fig.subplots(2, 2)
+    p = parameters.to_array()
+    import matplotlib
+
+    palette = matplotlib.colormaps["tab20"]
+    for i, ph in enumerate(phases):
+        color = palette(i % 20)
+        angle = np.degrees(ph["angle"])
+        axes[0, 0].plot(angle, ph["torque"], ".", ms=2.5, color=color, alpha=0.6)
+        axes[0, 0].plot(angle, ph["fitted"], "-", color=color, lw=1.2, label=ph["label"])
+        axes[0, 1].plot(np.degrees(ph["omega_cc"]), ph["torque"], ".", ms=2.5, color=color,
+                        alpha=0.6)
+        axes[1, 1].plot(np.degrees(ph["omega_cc"]), ph["torque"] - ph["fitted"], ".", ms=2.5,
+                        color=color, alpha=0.6)
+    wmax = parameters.max_velocity
+    omega = np.linspace(-wmax, wmax, 401)
+    peak = maximum_voluntary_torque(np.full_like(omega, parameters.optimal_angle), omega, p)
+    axes[0, 1].plot(np.degrees(omega), peak, "k-", lw=1.5, label="T_mv at the optimal angle")
+    theta = np.concatenate([ph["theta_cc"] for ph in phases])
+    speeds = np.concatenate([ph["omega_cc"] for ph in phases])
+    margin = 0.15 * max(np.ptp(speeds), 1.0)
+    axes[0, 1].set_xlim(np.degrees(min(speeds.min(), 0.0) - margin),
+                        np.degrees(max(speeds.max(), 0.0) + margin))
+    tt, ww = np.meshgrid(np.linspace(theta.min() - 0.2, theta.max() + 0.2, 81),
+                         np.linspace(min(speeds.min(), 0.0) - 0.5, max(speeds.max(), 0.0) + 0.5,
+                                     81))
+    surface = maximum_voluntary_torque(tt.ravel(), ww.ravel(), p).reshape(tt.shape)
+    filled = axes[1, 0].contourf(np.degrees(tt), np.degrees(ww), surface, levels=15,
+                                 cmap="viridis")
+    fig.colorbar(filled, ax=axes[1, 0], label="T_mv (N·m)")
+    axes[1, 0].plot(np.degrees(theta), np.degrees(speeds), "w.", ms=1.5)
+    axes[1, 1].axhline(0.0, color="grey", lw=0.8)
+    axes[0, 0].set(xlabel="joint angle (deg)", ylabel="unit torque (N·m)",
+                   title="data (dots) and fit (lines) per trial")
+    axes[0, 1].set(xlabel="CE velocity (deg/s, + concentric)", ylabel="unit torque (N·m)",
+                   title="against CE velocity")
+    axes[1, 0].set(xlabel="CE angle (deg)", ylabel="CE velocity (deg/s)",
+                   title="fitted surface and the samples")
+    axes[1, 1].set(xlabel="CE velocity (deg/s, + concentric)", ylabel="residual (N·m)",
+                   title="data − fit")
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center", ncols=4,
+               fontsize="x-small")
+    axes[0, 1].legend(fontsize="small")
+    for ax in (axes[0, 0], axes[0, 1], axes[1, 1]):
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    return fig

@@ -18,8 +18,8 @@ UNITS = ("deg", "rad")
 MIN_SAMPLES = 5
 
 
-def _fail(path: Path, message: str) -> ModelError:
-    return ModelError("target", f"{path.name}: {message}")
+def _fail(path: Path, message: str, field: str = "target") -> ModelError:
+    return ModelError(field, f"{path.name}: {message}")
 
 
 def _pick_column(path: Path, names: list[str], column: str | None) -> str:
@@ -38,15 +38,15 @@ def _pick_column(path: Path, names: list[str], column: str | None) -> str:
     raise _fail(path, f"several angle columns; choose one with --column: {', '.join(others)}")
 
 
-def _number(path: Path, text: str, line: int, column: str) -> float:
+def _number(path: Path, text: str, line: int, column: str, field: str = "target") -> float:
     try:
         value = float(text)
     except ValueError:
         raise _fail(path, f"line {line}, column {column!r}: {text.strip()!r} is not a "
-                          "number") from None
+                          "number", field) from None
     if not math.isfinite(value):
         raise _fail(path, f"line {line}, column {column!r}: {text.strip()!r} is not finite "
-                          "(NaN or inf); allowed: finite numbers")
+                          "(NaN or inf); allowed: finite numbers", field)
     return value
 
 
@@ -54,6 +54,7 @@ def read_angle_table(
     path, units: str | None = None,
     columns: Callable[[list[str]], list[str]] | list[str] | None = None,
     raw: Callable[[], Collection[str]] | Collection[str] = (),
+    field: str = "target",
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Time (s) and every angle column (rad) of a CSV or OpenSim ``.mot``/``.sto`` file.
 
@@ -67,25 +68,30 @@ def read_angle_table(
     units). ``columns`` limits the columns read (and checked) to those names; it may be a
     function of the angle column names that returns them. Columns named in ``raw`` (or by
     ``raw()``, called after ``columns``) are not angles: they are read as they are (forces in
-    N, positions in m), with no unit conversion. Errors name the file, line and column.
+    N, positions in m), with no unit conversion. Errors name the file, line and column (and
+    ``field``, the option the file came from).
     Returns (time, {column name: angle in rad, or the raw column's values}).
     """
     path = Path(path)
+
+    def fail(message: str) -> ModelError:
+        return _fail(path, message, field)
+
     if units is not None and units not in UNITS:
         raise ModelError("units", f"{units!r}; allowed: {', '.join(UNITS)}")
     try:
         lines = path.read_text(encoding="utf-8-sig").splitlines()
     except (OSError, UnicodeDecodeError) as exc:
-        raise ModelError("target", f"cannot read {str(path)!r}: "
+        raise ModelError(field, f"cannot read {str(path)!r}: "
                          f"{getattr(exc, 'strerror', None) or exc}") from None
     suffix = path.suffix.lower()
     declared = {}
     if suffix in (".mot", ".sto"):
-        first, in_degrees, declared = storage_header(lines, lambda message: _fail(path, message))
+        first, in_degrees, declared = storage_header(lines, fail)
         if in_degrees is not None:
             stated = "deg" if in_degrees else "rad"
             if units is not None and units != stated:
-                raise _fail(path, f"header says inDegrees={'yes' if in_degrees else 'no'} "
+                raise fail(f"header says inDegrees={'yes' if in_degrees else 'no'} "
                                   f"but --angle-units is {units}")
             units = stated
         rows = [(i + 1, line.split()) for i, line in enumerate(lines) if i >= first]
@@ -98,15 +104,15 @@ def read_angle_table(
         rows = [(i + 1, r) for i, r in enumerate(csv.reader(lines, dialect))
                 if not (r and r[0].lstrip().startswith("#"))]
     else:
-        raise ModelError("target", f"{path.name}: unknown file type {suffix!r}; allowed: "
+        raise ModelError(field, f"{path.name}: unknown file type {suffix!r}; allowed: "
                          ".csv, .mot, .sto or builtin:curl")
     rows = [(n, r) for n, r in rows if r and any(c.strip() for c in r)]
     if not rows:
-        raise _fail(path, "is empty")
+        raise fail("is empty")
     header_line, header = rows[0]
     names = [h.strip() for h in header]
     if "time" not in [n.lower() for n in names]:
-        raise _fail(path, f"line {header_line}: no 'time' column in the header")
+        raise fail(f"line {header_line}: no 'time' column in the header")
     t_col = [n.lower() for n in names].index("time")
     others = [n for n in names if n.lower() != "time"]
     wanted = others if columns is None else list(columns(others) if callable(columns)
@@ -114,29 +120,29 @@ def read_angle_table(
     for name in wanted:
         allowed = ", ".join(n for n in names if n.lower() != "time")
         if name.lower() == "time":
-            raise _fail(path, f"column {name!r} is the time, not an angle; allowed: {allowed}")
+            raise fail(f"column {name!r} is the time, not an angle; allowed: {allowed}")
         if name not in names:
-            raise _fail(path, f"no column {name!r}; allowed: {allowed}")
+            raise fail(f"no column {name!r}; allowed: {allowed}")
     if not wanted:
-        raise _fail(path, f"line {header_line}: no angle column beside 'time'")
+        raise fail(f"line {header_line}: no angle column beside 'time'")
     a_cols = [names.index(n) for n in wanted]
     time, angle = [], []
     for line_no, row in rows[1:]:
         if len(row) != len(names):
-            raise _fail(path, f"line {line_no}: {len(row)} cells, the header has {len(names)}")
-        time.append(_number(path, row[t_col], line_no, names[t_col]))
-        angle.append([_number(path, row[c], line_no, names[c]) for c in a_cols])
+            raise fail(f"line {line_no}: {len(row)} cells, the header has {len(names)}")
+        time.append(_number(path, row[t_col], line_no, names[t_col], field))
+        angle.append([_number(path, row[c], line_no, names[c], field) for c in a_cols])
         if len(time) > 1 and time[-1] <= time[-2]:
-            raise _fail(path, f"line {line_no}, column {names[t_col]!r}: time "
+            raise fail(f"line {line_no}, column {names[t_col]!r}: time "
                               f"{time[-1]!r} does not increase (previous {time[-2]!r})")
     if "nrows" in declared and declared["nrows"] != len(time):
-        raise _fail(path, f"header nRows={declared['nrows']} but the file has {len(time)} data "
+        raise fail(f"header nRows={declared['nrows']} but the file has {len(time)} data "
                           "rows; allowed: a header that matches its data (a truncated file?)")
     if "ncolumns" in declared and declared["ncolumns"] != len(names):
-        raise _fail(path, f"header nColumns={declared['ncolumns']} but the data has "
+        raise fail(f"header nColumns={declared['ncolumns']} but the data has "
                           f"{len(names)} columns; allowed: a header that matches its data")
     if len(time) < MIN_SAMPLES:
-        raise _fail(path, f"{len(time)} samples; allowed at least {MIN_SAMPLES}")
+        raise fail(f"{len(time)} samples; allowed at least {MIN_SAMPLES}")
     table = np.array(angle).reshape(len(time), len(a_cols))
     as_is = set(raw() if callable(raw) else raw)
     out = {}
@@ -148,7 +154,7 @@ def read_angle_table(
             table[:, i] = np.radians(table[:, i])
         worst = float(np.max(np.abs(table[:, i])))
         if worst > 2 * math.pi:
-            raise _fail(path, f"column {name!r}: {math.degrees(worst):.4g}° is more than a "
+            raise fail(f"column {name!r}: {math.degrees(worst):.4g}° is more than a "
                               "full turn: not a joint angle in these units; allowed |angle| "
                               "≤ 360° (check --angle-units or the file's inDegrees)")
         out[name] = np.ascontiguousarray(table[:, i])

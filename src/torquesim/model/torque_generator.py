@@ -134,27 +134,36 @@ class TorqueGeneratorUnit:
 
     def to_array(self) -> np.ndarray:
         """Pack into the float array read by the compiled functions (derived constants too)."""
-        p = np.zeros(UNIT_ARRAY_SIZE)
-        p[T0] = self.isometric_torque
-        p[T_MAX] = self.eccentric_torque_max
-        p[OMEGA_MAX] = self.max_velocity
-        p[OMEGA_C] = self.velocity_constant
-        p[SLOPE_RATIO] = self.eccentric_slope_ratio
-        p[A_MIN] = self.min_differential_activation
-        p[OMEGA_R] = self.differential_activation_rate
-        p[OMEGA_1] = self.differential_activation_midpoint
-        p[THETA_OPT] = self.optimal_angle
-        p[K2] = self.angle_curvature
-        p[K_SE] = self.se_stiffness
-        p[CE_DAMPING] = self.ce_damping
-        t0, tmax, wmax, wc, k = p[T0], p[T_MAX], p[OMEGA_MAX], p[OMEGA_C], p[SLOPE_RATIO]
-        p[T_C] = t0 * wc / wmax
-        p[C_CONC] = p[T_C] * (wmax + wc)
-        p[OMEGA_E] = (tmax - t0) / (k * t0) * wmax * wc / (wmax + wc)
-        p[E_ECC] = -(tmax - t0) * p[OMEGA_E]
-        p[H_ISOMETRIC] = ce_torque_velocity(0.0, p, 0)
-        p[H_ECC_LIMIT] = ce_torque_velocity(-wmax, p, 0)
-        return p
+        return pack_unit_parameters(
+            np.array([getattr(self, name) for name in PACKED_FIELDS]))
+
+
+#: The fields of `TorqueGeneratorUnit` in the order `pack_unit_parameters` reads them (the
+#: order of the packed array's first slots).
+PACKED_FIELDS = ("isometric_torque", "eccentric_torque_max", "max_velocity", "velocity_constant",
+                 "eccentric_slope_ratio", "min_differential_activation",
+                 "differential_activation_rate", "differential_activation_midpoint",
+                 "optimal_angle", "angle_curvature", "se_stiffness", "ce_damping")
+_PACKED_SLOTS = (T0, T_MAX, OMEGA_MAX, OMEGA_C, SLOPE_RATIO, A_MIN, OMEGA_R, OMEGA_1,
+                 THETA_OPT, K2, K_SE, CE_DAMPING)
+
+
+def pack_unit_parameters(values: np.ndarray) -> np.ndarray:
+    """The packed parameter array of a unit from its 12 field values in `PACKED_FIELDS`
+    order, with the derived constants of Yeadon et al. (2006) (docs/model.md §2.1):
+    T_c = T0·ω_c/ω_max, C = T_c·(ω_max + ω_c), ω_e = (T_max − T0)/(k·T0)·ω_max·ω_c/(ω_max + ω_c),
+    E = −(T_max − T0)·ω_e. No validation: `TorqueGeneratorUnit` checks the values; a fit
+    packs trial values with this before it builds the checked unit."""
+    p = np.zeros(UNIT_ARRAY_SIZE)
+    p[list(_PACKED_SLOTS)] = values
+    t0, tmax, wmax, wc, k = p[T0], p[T_MAX], p[OMEGA_MAX], p[OMEGA_C], p[SLOPE_RATIO]
+    p[T_C] = t0 * wc / wmax
+    p[C_CONC] = p[T_C] * (wmax + wc)
+    p[OMEGA_E] = (tmax - t0) / (k * t0) * wmax * wc / (wmax + wc)
+    p[E_ECC] = -(tmax - t0) * p[OMEGA_E]
+    p[H_ISOMETRIC] = ce_torque_velocity(0.0, p, 0)
+    p[H_ECC_LIMIT] = ce_torque_velocity(-wmax, p, 0)
+    return p
 
 
 #: The T_ω and d parameter sets already found monotone (h depends on p[T0 : OMEGA_1 + 1]
@@ -273,6 +282,18 @@ def ce_torque_velocity_slope(omega, p, o=0):
     """h'(ω) = d'·T_ω + d·T_ω', N·m·s/rad (concentric slope at the kink ω = 0)."""
     return (differential_activation_slope(omega, p, o) * tetanic_torque_velocity(omega, p, o)
             + differential_activation(omega, p, o) * tetanic_torque_velocity_slope(omega, p, o))
+
+
+@njit(cache=True, error_model="numpy")
+def maximum_voluntary_torque(theta_cc, omega_cc, p):
+    """T_mv(θ_cc, ω_cc) = d(ω_cc)·T_ω(ω_cc)·T_θ(θ_cc), N·m, at every pair of the arrays
+    ``theta_cc`` (rad) and ``omega_cc`` (rad/s, positive concentric): the CE torque of abstract
+    Eq. 3 at full activation, the maximum voluntary torque function fitted to dynamometer
+    trials (King, Wilson & Yeadon 2006; Forrester et al. 2011)."""
+    out = np.empty(theta_cc.size)
+    for i in range(theta_cc.size):
+        out[i] = ce_torque_velocity(omega_cc[i], p, 0) * torque_angle(theta_cc[i], p, 0)
+    return out
 
 
 #: ce_velocity accepts a Halley step shorter than this (rad/s): convergence is cubic, so the
