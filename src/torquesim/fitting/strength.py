@@ -14,12 +14,13 @@ King, Wilson & Yeadon (2006) and Forrester et al. (2011), with the lab's steps:
    joint angle, −1 otherwise).
 2. **The constant-velocity phase** of each isovelocity trial: the longest run of samples whose
    joint velocity is within ± max(5 %, 2 °/s) of the set speed (the median velocity of the
-   samples above 80 % of the trial's peak speed); a trial whose speed stays below 5 °/s is
+   samples above 80 % of the trial's peak speed), less its first 0.1 s while the torque
+   settles to the new speed; a trial whose speed stays below 5 °/s is
    isometric, and its plateau (torque ≥ 95 % of its peak) is used, with the CE at rest
    (ω_cc = 0: a held maximal effort).
 3. **The series elastic element**: under load the CE angle is not the crank angle. With SE
    stiffness k (held, from the model), θ_cc = θ + δ·T_u/k and ω_cc = δ·ω + (dT_u/dt)/k (the
-   torque's rate from a smoothing spline, `_torque_rate`).
+   torque's rate from a cubic fitted to the phase, `_phase_rate`).
 4. **The score**: the weighted RMS difference of Forrester et al. (2011), in which a sample
    above the function counts ``above_weight`` times one below, so that sub-maximal efforts
    (one-sided noise) do not pull the function down. ``above_weight="auto"`` weighs 1 (plain
@@ -34,7 +35,7 @@ King, Wilson & Yeadon (2006) and Forrester et al. (2011), with the lab's steps:
    trade off against T_max and a_min, so wide intervals there are the data's answer.
 
 Parameters the trials cannot determine are held at the starting unit's values and said so:
-without eccentric trials, T_max and the differential activation (a_min, ω_r, ω_1); without
+without eccentric trials, T_max/T0 and the differential activation (a_min, ω_r, ω_1); without
 concentric trials, ω_max and ω_c. ``hold`` holds any other (e.g. ω_max from an independent
 estimate, as Forrester et al. recommend).
 """
@@ -45,12 +46,13 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import interpolate, optimize, stats
+from scipy import optimize, stats
 
 from ..errors import ModelError, check_range
 from ..io.dynamometer import DynamometerTrial
 from ..model.torque_generator import (
     PACKED_FIELDS,
+    PACKED_SLOTS,
     TorqueGeneratorUnit,
     _h_on_grid,
     maximum_voluntary_torque,
@@ -78,6 +80,8 @@ PARAMETER_RANGES = {
 }
 #: T_max/T0 range (King et al. 2006 give 1.1–1.5 for maximal voluntary eccentric torque).
 ECCENTRIC_RATIO = (1.1, 2.0)
+#: Shortest constant-velocity phase, s.
+MIN_PHASE = 0.05
 #: Weight of a sample above the function when the data show one-sided noise.
 ONE_SIDED_WEIGHT = 4.0
 #: Residual skewness below which the noise counts as one-sided.
@@ -101,6 +105,10 @@ class StrengthSettings:
     plateau : float
         Isometric trials: the samples at or above this fraction of the trial's peak torque are
         used. Default 0.95. Bounds (0, 1].
+    settling_time : float
+        Isovelocity trials: the first part of the constant-velocity phase left out while the
+        torque settles to the new speed (at least a third of the phase is kept), s.
+        Default 0.1. Bounds [0, 1].
     above_weight : float or "auto"
         Weight of a sample above the function (Forrester et al. 2011). Default "auto" (see the
         module's docstring). Bounds [1, 100].
@@ -119,6 +127,7 @@ class StrengthSettings:
     min_velocity_tolerance: float = math.radians(2.0)
     isometric_speed: float = math.radians(5.0)
     plateau: float = 0.95
+    settling_time: float = 0.1
     above_weight: float | str = "auto"
     se_stiffness: float | None = None
     hold: dict = field(default_factory=dict)
@@ -132,6 +141,7 @@ class StrengthSettings:
         check_range("isometric_speed", self.isometric_speed, 0.0, 1.0, low_open=True,
                     unit="rad/s")
         check_range("plateau", self.plateau, 0.0, 1.0, low_open=True)
+        check_range("settling_time", self.settling_time, 0.0, 1.0, unit="s")
         if self.above_weight != "auto":
             check_range("above_weight", self.above_weight, 1.0, 100.0)
         if self.se_stiffness is not None:
@@ -208,11 +218,16 @@ class Phase:
     omega_cc: np.ndarray
 
 
-def _torque_rate(trial: DynamometerTrial, torque: np.ndarray) -> np.ndarray:
-    """dT/dt (N·m/s): the derivative of a cubic smoothing spline fitted to the trial's torque,
-    its smoothing chosen by generalised cross-validation (`scipy.interpolate.
-    make_smoothing_spline`), so that measurement noise is not differentiated."""
-    return interpolate.make_smoothing_spline(trial.time, torque).derivative()(trial.time)
+def _phase_rate(time: np.ndarray, torque: np.ndarray) -> np.ndarray:
+    """dT/dt (N·m/s) along a constant-velocity phase: the derivative of a cubic in time fitted
+    to the phase's torque by least squares (at constant speed the torque follows the
+    torque/angle curve, a quadratic in the angle and so in time; the cubic leaves room for
+    the settling after the speed-up). Differentiating the noisy samples themselves would put
+    the noise, amplified, into the CE velocity."""
+    centre = time - time.mean()
+    coefficients = np.polynomial.polynomial.polyfit(centre, torque, min(3, time.size - 1))
+    return np.polynomial.polynomial.polyval(centre, np.polynomial.polynomial.polyder(
+        coefficients))
 
 
 def _longest_run(mask: np.ndarray) -> tuple[int, int]:
@@ -240,7 +255,6 @@ def trial_phases(trial: DynamometerTrial, direction: int, stiffness: float,
         return ModelError("trials", f"{trial.name}: {message}")
 
     unit_torque = direction * (trial.torque - passive(trial.angle))
-    rate = _torque_rate(trial, unit_torque)
     peak_speed = float(np.max(np.abs(trial.velocity)))
     chosen: list[tuple[str, float, np.ndarray]] = []
     if peak_speed < settings.isometric_speed:
@@ -255,11 +269,11 @@ def trial_phases(trial: DynamometerTrial, direction: int, stiffness: float,
                             settings.min_velocity_tolerance)
             start, stop = _longest_run(np.abs(trial.velocity - speed) <= tolerance)
             dt = float(np.median(np.diff(trial.time)))
-            if stop - start < max(5, int(math.ceil(0.02 / dt))):
+            if stop - start < max(5, int(math.ceil(MIN_PHASE / dt))):
                 raise fail(f"no constant-velocity phase: the velocity stays within "
                            f"±{math.degrees(tolerance):.3g} °/s of the set speed "
                            f"{math.degrees(speed):.4g} °/s for {stop - start} samples; "
-                           "allowed: at least 20 ms and 5 samples (or raise "
+                           f"allowed: at least {MIN_PHASE * 1e3:g} ms and 5 samples (or raise "
                            "--velocity-tolerance)")
             chosen.append(("concentric" if direction * speed > 0 else "eccentric", speed,
                            np.arange(start, stop)))
@@ -280,10 +294,14 @@ def trial_phases(trial: DynamometerTrial, direction: int, stiffness: float,
             continue
         if kind == "isometric":
             rows = rows[unit_torque[rows] >= settings.plateau * unit_torque[rows].max()]
+        else:
+            settled = rows[trial.time[rows] >= trial.time[rows[0]] + settings.settling_time]
+            rows = settled if settled.size >= max(5, rows.size // 3) else rows
         torque = unit_torque[rows]
         stretch = np.maximum(torque, 0.0) / stiffness
         omega_cc = (np.zeros(rows.size) if kind == "isometric"
-                    else direction * trial.velocity[rows] + rate[rows] / stiffness)
+                    else direction * trial.velocity[rows]
+                    + _phase_rate(trial.time[rows], torque) / stiffness)
         phases.append(Phase(trial.name, kind, speed, rows, trial.angle[rows],
                             trial.velocity[rows], torque, trial.angle[rows] + direction * stretch,
                             omega_cc))
@@ -359,8 +377,12 @@ def _held_by_data(phases: list[Phase]) -> dict[str, str]:
     return held
 
 
-#: ω values (fractions of ω_max) where h = d·T_ω must decrease, for the penalty.
-_MONOTONE_GRID = np.concatenate([-np.linspace(1.0, 0.0, 61)[:-1], np.linspace(0.0, 1.0, 61)])
+#: ω values (fractions of ω_max) where h = d·T_ω must decrease, for the penalty (coarser than
+#: the check of `TorqueGeneratorUnit`; `_monotone_unit` settles what slips between).
+_MONOTONE_GRID = np.concatenate([-np.linspace(1.0, 0.0, 201), np.linspace(0.0, 1.0, 201)[1:]])
+#: The penalty asks h' ≤ −MONOTONE_MARGIN·T0 (per rad/s), so that the optimum, which may lie
+#: on the constraint, passes the check.
+MONOTONE_MARGIN = 1e-6
 
 
 def fit_strength(trials: list[DynamometerTrial], unit: TorqueGeneratorUnit, direction: int,
@@ -398,17 +420,25 @@ def fit_strength(trials: list[DynamometerTrial], unit: TorqueGeneratorUnit, dire
     base = np.array([start_values[f] for f in PACKED_FIELDS])
     evaluations = [0]
 
+    keep_ratio = "eccentric_torque_max" in status and "eccentric_torque_max" not in settings.hold
+    ratio = unit.eccentric_torque_max / unit.isometric_torque
+
     def packed(x: np.ndarray) -> np.ndarray:
         values = base.copy()
         values[slots] = x
+        if keep_ratio:  # held without eccentric data: T_max/T0 as the starting unit's
+            values[1] = ratio * values[0]
         return pack_unit_parameters(values)
 
     def penalties(p: np.ndarray) -> np.ndarray:
+        """Zero inside the constraints (T_max/T0 in its range, h decreasing on the grid),
+        growing linearly outside."""
         ratio = p[1] / p[0]
         _, slopes = _h_on_grid(_MONOTONE_GRID * p[2], p, 0)
-        return np.concatenate([
-            [max(0.0, ECCENTRIC_RATIO[0] - ratio), max(0.0, ratio - ECCENTRIC_RATIO[1])],
-            np.maximum(slopes[:-1], 0.0) / max(p[0], 1.0)]) * 1e3 * math.sqrt(torque.size)
+        rising = np.maximum(slopes[:-1] + MONOTONE_MARGIN * p[0], 0.0) / p[0]
+        return np.concatenate([[max(0.0, ECCENTRIC_RATIO[0] - ratio),
+                                max(0.0, ratio - ECCENTRIC_RATIO[1])],
+                               rising]) * 1e3 * math.sqrt(torque.size)
 
     def residuals(x: np.ndarray, weight: float) -> np.ndarray:
         evaluations[0] += 1
@@ -443,14 +473,8 @@ def fit_strength(trials: list[DynamometerTrial], unit: TorqueGeneratorUnit, dire
     fitted = maximum_voluntary_torque(theta_cc, omega_cc, p)
     difference = torque - fitted
     weights = np.where(difference > 0.0, weight, 1.0)
-    values = dict(zip(PACKED_FIELDS, base, strict=True))
-    values.update(zip(free, best.x.tolist(), strict=True))
-    try:
-        parameters = TorqueGeneratorUnit(**values)
-    except ModelError as exc:
-        raise ModelError("trials", f"the fitted function is not a valid unit ({exc}); allowed: "
-                         "trials that determine it (add trials, or --hold the parameter "
-                         "named)") from None
+    values = dict(zip(PACKED_FIELDS, packed(best.x)[list(PACKED_SLOTS)].tolist(), strict=True))
+    parameters = _monotone_unit(values, notes)
     rho = _autocorrelation(difference, phases)
     intervals, at_bound = _intervals(best, free, lower, upper, difference, weights, rho)
     for name in free:
@@ -462,6 +486,31 @@ def fit_strength(trials: list[DynamometerTrial], unit: TorqueGeneratorUnit, dire
         above_weight=float(weight), skewness=skewness,
         fraction_beneath=float(np.mean(difference <= 0.0)), autocorrelation=rho,
         phases=phases, fitted=fitted, notes=notes, evaluations=evaluations[0])
+
+
+def _monotone_unit(values: dict, notes: list[str]) -> TorqueGeneratorUnit:
+    """The unit of ``values``; if its h = d·T_ω is not strictly decreasing between the
+    penalty's grid points (the optimum can sit on that constraint), a_min raised by bisection
+    to the least value that makes it so (a_min = 1 always does), with a line in ``notes``."""
+    try:
+        return TorqueGeneratorUnit(**values)
+    except ModelError as exc:
+        if "strictly decreasing" not in str(exc):
+            raise ModelError("trials", f"the fitted function is not a valid unit ({exc}); "
+                             "allowed: trials that determine it (add trials, or --hold the "
+                             "parameter named)") from None
+    low, high = values["min_differential_activation"], 1.0
+    for _ in range(30):
+        middle = 0.5 * (low + high)
+        try:
+            TorqueGeneratorUnit(**{**values, "min_differential_activation": middle})
+            high = middle
+        except ModelError:
+            low = middle
+    notes.append(f"min_differential_activation raised from "
+                 f"{values['min_differential_activation']:.6g} to {high:.6g} so that d·T_ω "
+                 "decreases strictly (docs/model.md §2.5)")
+    return TorqueGeneratorUnit(**{**values, "min_differential_activation": high})
 
 
 def _starts(free, base, lower, upper, torque, theta_cc, settings) -> list[np.ndarray]:

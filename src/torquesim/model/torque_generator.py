@@ -144,7 +144,8 @@ PACKED_FIELDS = ("isometric_torque", "eccentric_torque_max", "max_velocity", "ve
                  "eccentric_slope_ratio", "min_differential_activation",
                  "differential_activation_rate", "differential_activation_midpoint",
                  "optimal_angle", "angle_curvature", "se_stiffness", "ce_damping")
-_PACKED_SLOTS = (T0, T_MAX, OMEGA_MAX, OMEGA_C, SLOPE_RATIO, A_MIN, OMEGA_R, OMEGA_1,
+#: Where each of `PACKED_FIELDS` sits in the packed array.
+PACKED_SLOTS = (T0, T_MAX, OMEGA_MAX, OMEGA_C, SLOPE_RATIO, A_MIN, OMEGA_R, OMEGA_1,
                  THETA_OPT, K2, K_SE, CE_DAMPING)
 
 
@@ -155,7 +156,7 @@ def pack_unit_parameters(values: np.ndarray) -> np.ndarray:
     E = −(T_max − T0)·ω_e. No validation: `TorqueGeneratorUnit` checks the values; a fit
     packs trial values with this before it builds the checked unit."""
     p = np.zeros(UNIT_ARRAY_SIZE)
-    p[list(_PACKED_SLOTS)] = values
+    p[list(PACKED_SLOTS)] = values
     t0, tmax, wmax, wc, k = p[T0], p[T_MAX], p[OMEGA_MAX], p[OMEGA_C], p[SLOPE_RATIO]
     p[T_C] = t0 * wc / wmax
     p[C_CONC] = p[T_C] * (wmax + wc)
