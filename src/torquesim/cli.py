@@ -791,7 +791,7 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
 
 
 @cli.command(short_help="Fit a unit's strength to dynamometer trials.")
-@click.argument("trials", nargs=-1, type=click.Path(dir_okay=False))
+@click.argument("trials", nargs=-1, type=click.Path())
 @click.option("--model", "model_path", default="builtin:knee-extension", show_default=True,
               help="The model whose unit is fitted: a TOML file or one of " + preset_list()
               + ". Trial angles are its joint's angles (its zero and sign).")
@@ -842,8 +842,9 @@ def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gr
 
     TRIALS are files (CSV, .sto or .mot), one per trial, with columns time (s), angle,
     velocity (optional) and torque (N·m): isometric trials at several angles, and
-    concentric and eccentric isovelocity trials. Writes the model with the fitted unit, a
-    table of the samples used, a figure and a summary (docs/strength.md).
+    concentric and eccentric isovelocity trials; a folder stands for every such file in it
+    but the --passive one. Writes the model with the fitted unit, a table of the samples
+    used, a figure and a summary (docs/strength.md).
     """
     _quiet_compiling(quiet)
     import time
@@ -858,9 +859,10 @@ def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gr
     from .io.dynamometer import read_trial
     from .io.model_file import load_model
 
+    trials = _trial_files(trials, passive_path)
     if not trials:
         raise ModelError("TRIALS", "no trial files given; allowed: one or more .csv, .sto or "
-                         ".mot files (examples/dynamometer/ has some)")
+                         ".mot files, or a folder of them (examples/dynamometer/ has some)")
     out = _search_folder(out_dir, False, overwrite, STRENGTH_FILES, "strength fit")
     model = load_model(model_path)
     names = [u.name for u in model.units]
@@ -906,6 +908,20 @@ def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gr
     click.echo("\n".join(summary_lines(summary)))
     click.echo(f"wrote {out_dir}/: {', '.join(files)}")
     return 0
+
+
+def _trial_files(paths, passive_path) -> list[str]:
+    """The trial files of ``paths``: each file as given, each folder's .csv, .sto and .mot
+    files (sorted by name) but the passive trial's."""
+    passive = Path(passive_path).resolve() if passive_path else None
+    files = []
+    for path in map(Path, paths):
+        if path.is_dir():
+            files += [str(p) for p in sorted(path.iterdir())
+                      if p.suffix.lower() in (".csv", ".sto", ".mot") and p.resolve() != passive]
+        else:
+            files.append(str(path))
+    return files
 
 
 def _strength_unit(model, unit_name, trials, units, torque_sign):
