@@ -379,10 +379,18 @@ def _announce_size(model, method, step, duration, out_path) -> None:
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Draw the model (segments, joints, loads, which units act where) and each "
                    "unit's property curves (.png, .pdf, .svg).")
-def model(name, out_path, plot_path):
+@click.option("--body-mass", type=float, default=None,
+              help="Make the built-in model for a subject of this body mass (kg, 20-250; "
+              "with --height): segments from de Leva (1996), strengths scaled.")
+@click.option("--height", type=float, default=None,
+              help="The subject's standing height (m, 1.0-2.5; with --body-mass).")
+@click.option("--sex", type=click.Choice(["male", "female"]), default=None,
+              help="The subject's sex, for de Leva's tables. Default: male.")
+def model(name, out_path, plot_path, body_mass, height, sex):
     """Write a model as an editable TOML file: a preset (NAME is one of the presets listed by
-    `torquesim simulate --help`; builtin: prefix optional) or a checked, rewritten copy of a
-    model file; or draw it with --plot."""
+    `torquesim simulate --help`; builtin: prefix optional), made for a subject with
+    --body-mass and --height, or a checked, rewritten copy of a model file; or draw it with
+    --plot."""
     from .io.model_file import load_model, save_model
     from .model.presets import PREFIX, PRESETS
 
@@ -396,6 +404,20 @@ def model(name, out_path, plot_path):
                          f"{', '.join(PRESETS)} or a model file")
     source = PREFIX + name if name in PRESETS else name
     chain = load_model(source)
+    if body_mass is not None or height is not None or sex is not None:
+        from .model.anthropometry import Subject, for_subject
+
+        if body_mass is None or height is None:
+            missing = "--height" if height is None else "--body-mass"
+            raise ModelError(missing, "required to make a model for a subject; allowed: "
+                             "--body-mass KG --height M [--sex male|female]")
+        if not source.startswith(PREFIX):
+            raise ModelError("--body-mass", f"{name!r} is a model file; allowed: a built-in "
+                             f"model ({', '.join(PRESETS)}), whose segments are de Leva's")
+        try:
+            chain = for_subject(chain, Subject(body_mass, height, sex or "male"))
+        except ModelError as exc:
+            raise _as_option(exc, {"body_mass": "--body-mass", "height": "--height"}) from None
     if out_path:
         save_model(chain, out_path, "--out")
         click.echo(f"wrote {out_path}")

@@ -1,0 +1,204 @@
+"""A built-in model made for one subject: segments from de Leva (1996), strengths scaled.
+
+de Leva P (1996) Adjustments to Zatsiorsky–Seluyanov's segment inertia parameters. J Biomech
+29:1223–1230, Table 4 (joint-centre endpoints): per sex, each segment's mean length, mass as a
+fraction of body mass, centre of mass as a fraction of its length from the proximal end, and
+radius of gyration about the sagittal axis as a fraction of its length. The means are of
+Zatsiorsky's subjects: men 1.741 m and 73.0 kg, women 1.735 m and 61.9 kg.
+
+The presets are built for de Leva's reference man (73 kg, 1.741 m). `for_subject` makes any of
+them for a subject by the ratios of the subject's de Leva values to the reference man's, so that
+the reference man gets the preset back exactly and a subject gets de Leva's proportions:
+
+- a segment (or body-part load) that is a de Leva segment, or several laid end to end: its
+  mass, length, centre of mass and inertia about the proximal joint times the ratio of the
+  subject's de Leva values to the reference man's; loads and points on it move with its length;
+- head-arms-trunk: the body mass left over (so the segments sum to the body mass), its centre
+  of mass and length with the height, its inertia with mass × height²;
+- external loads (a dumbbell, an ankle weight) keep their mass;
+- each unit's T0 and T_max, and its SE stiffness (so the SE strain at T0 stays), times
+  (body mass × height) / (73 kg × 1.741 m): strength normalised as N·m per kg·m, a reasoned
+  estimate with no sex or age factor (a `torquesim strength` fit replaces it).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from ..errors import ModelError, check_range
+
+SEXES = ("male", "female")
+#: de Leva (1996) Table 4: (length m, mass fraction, CoM from proximal fraction, sagittal
+#: radius of gyration fraction).
+DE_LEVA = {
+    "male": {
+        "head": (0.2033, 0.0694, 0.5976, 0.362),
+        "trunk": (0.5319, 0.4346, 0.4486, 0.372),
+        "upper_arm": (0.2817, 0.0271, 0.5772, 0.285),
+        "forearm": (0.2689, 0.0162, 0.4574, 0.276),
+        "hand": (0.0862, 0.0061, 0.7900, 0.628),
+        "thigh": (0.4222, 0.1416, 0.4095, 0.329),
+        "shank": (0.4340, 0.0433, 0.4459, 0.255),
+        "foot": (0.2581, 0.0137, 0.4415, 0.257),
+    },
+    "female": {
+        "head": (0.2002, 0.0668, 0.5894, 0.330),
+        "trunk": (0.5292, 0.4257, 0.4151, 0.357),
+        "upper_arm": (0.2751, 0.0255, 0.5754, 0.278),
+        "forearm": (0.2643, 0.0138, 0.4559, 0.261),
+        "hand": (0.0780, 0.0056, 0.7474, 0.531),
+        "thigh": (0.3685, 0.1478, 0.3612, 0.369),
+        "shank": (0.4323, 0.0481, 0.4416, 0.271),
+        "foot": (0.2283, 0.0129, 0.4014, 0.299),
+    },
+}
+#: Segments that come in pairs (left and right).
+PAIRED = ("upper_arm", "forearm", "hand", "thigh", "shank", "foot")
+#: Mean stature of de Leva's (Zatsiorsky's) subjects, m.
+STATURE = {"male": 1.741, "female": 1.735}
+#: The subject the presets are built for.
+REFERENCE_MASS, REFERENCE_HEIGHT, REFERENCE_SEX = 73.0, 1.741, "male"
+#: The de Leva segments each preset segment or body-part load is, proximal first.
+PRESET_PARTS = {
+    "upper_arm": ("upper_arm",),
+    "forearm_hand": ("forearm", "hand"),
+    "shank_foot": ("shank",),
+    "shank": ("shank",),
+    "thigh": ("thigh",),
+    "foot": ("foot",),
+}
+#: The segment that takes the body mass the others leave.
+REMAINDER = "head_arms_trunk"
+
+
+@dataclass(frozen=True)
+class Subject:
+    """A person a model is made for.
+
+    Attributes
+    ----------
+    body_mass : float
+        kg. Bounds [20, 250].
+    height : float
+        Standing height, m. Bounds [1.0, 2.5].
+    sex : str
+        "male" or "female" (de Leva's tables are by sex).
+    """
+
+    body_mass: float
+    height: float
+    sex: str = "male"
+
+    def __post_init__(self) -> None:
+        check_range("body_mass", self.body_mass, 20.0, 250.0, unit="kg")
+        check_range("height", self.height, 1.0, 2.5, unit="m")
+        if self.sex not in SEXES:
+            raise ModelError("sex", f"{self.sex!r}; allowed: {', '.join(SEXES)}")
+
+
+REFERENCE = Subject(REFERENCE_MASS, REFERENCE_HEIGHT, REFERENCE_SEX)
+
+
+def segment_values(parts: tuple[str, ...], subject: Subject) -> tuple[float, float, float,
+                                                                        float]:
+    """(mass kg, length m, centre of mass from the proximal end m, inertia about the proximal
+    end kg·m²) of de Leva segments ``parts`` laid end to end (e.g. forearm then hand), for
+    ``subject``: lengths scaled by height/stature of the sex, masses by body mass."""
+    table = DE_LEVA[subject.sex]
+    scale = subject.height / STATURE[subject.sex]
+    mass = moment = inertia = start = 0.0
+    for part in parts:
+        length, fraction, com, gyration = table[part]
+        length *= scale
+        m = fraction * subject.body_mass
+        c = start + com * length
+        mass += m
+        moment += m * c
+        inertia += m * ((gyration * length) ** 2 + c * c)
+        start += length
+    return mass, start, moment / mass, inertia
+
+
+def mass_fractions(sex: str) -> float:
+    """The sum of de Leva's mass fractions over the whole body (paired segments twice)."""
+    return sum(v[1] * (2 if k in PAIRED else 1) for k, v in DE_LEVA[sex].items())
+
+
+def for_subject(model, subject: Subject):
+    """``model`` (a preset, built for `REFERENCE`) made for ``subject`` (see the module's
+    docstring for each rule). A model with a segment that is neither in `PRESET_PARTS` nor
+    the remainder is refused."""
+    known = [s.name for s in model.segments if s.name in PRESET_PARTS or s.name == REMAINDER]
+    unknown = [s.name for s in model.segments if s.name not in known]
+    if unknown:
+        raise ModelError("body_mass", f"{model.name}: segment {unknown[0]!r} has no de Leva "
+                         "segment; allowed: the built-in models")
+    height_ratio = subject.height / REFERENCE.height
+    length_ratio: dict[str, float] = {}
+    segments = []
+    body = 0.0
+    for seg in model.segments:
+        if seg.name == REMAINDER:
+            segments.append(seg)
+            length_ratio[seg.name] = height_ratio
+            continue
+        new = segment_values(PRESET_PARTS[seg.name], subject)
+        old = segment_values(PRESET_PARTS[seg.name], REFERENCE)
+        r_mass, r_length, r_com, r_inertia = (n / o for n, o in zip(new, old, strict=True))
+        length_ratio[seg.name] = r_length
+        loads = tuple(_scaled_load(load, subject, r_length) for load in seg.loads)
+        body += seg.mass * r_mass + sum(ld.mass for ld in loads if ld.name in PRESET_PARTS)
+        segments.append(replace(seg, mass=seg.mass * r_mass, length=seg.length * r_length,
+                                com_distance=seg.com_distance * r_com,
+                                inertia_about_joint=seg.inertia_about_joint * r_inertia,
+                                loads=loads))
+    out = []
+    for seg in segments:
+        changes = {}
+        if seg.name == REMAINDER:
+            mass = subject.body_mass - body
+            r_mass = mass / seg.mass
+            changes = dict(mass=mass, com_distance=seg.com_distance * height_ratio,
+                           length=seg.length * height_ratio,
+                           inertia_about_joint=seg.inertia_about_joint * r_mass
+                           * height_ratio ** 2)
+        if seg.parent_distance is not None:
+            parent = seg.parent or _previous(model, seg.name)
+            changes["parent_distance"] = seg.parent_distance * length_ratio[parent]
+        out.append(replace(seg, **changes) if changes else seg)
+    points = tuple(replace(p, distance=p.distance * length_ratio[p.segment],
+                           offset=p.offset * length_ratio[p.segment]) for p in model.points)
+    strength = (subject.body_mass * subject.height) / (REFERENCE.body_mass * REFERENCE.height)
+    units = tuple(replace(u, parameters=replace(
+        u.parameters, isometric_torque=u.parameters.isometric_torque * strength,
+        eccentric_torque_max=u.parameters.eccentric_torque_max * strength,
+        se_stiffness=u.parameters.se_stiffness * strength)) for u in model.units)
+    note = (f"Made for a {subject.sex} subject of {subject.body_mass:g} kg and "
+            f"{subject.height:g} m: segments scaled from the preset (built for de Leva's 73 kg, "
+            "1.741 m man) by the ratios of the subject's de Leva (1996, Table 4) segment masses, "
+            "lengths, centres of mass and inertias to the reference man's; head-arms-trunk "
+            "the body mass left over, its lengths with the height; external loads unchanged; "
+            f"T0, T_max and SE stiffness times {strength:.4g} (body mass x height, est.; no sex "
+            "or age factor: fit strengths with torquesim strength). The notes below are the "
+            "preset's, for its reference man.")
+    return model.replace(segments=tuple(out), points=points, units=units,
+                         notes=(note, *model.notes))
+
+
+def _previous(model, name: str) -> str:
+    names = [s.name for s in model.segments]
+    return names[names.index(name) - 1]
+
+
+def _scaled_load(load, subject: Subject, length_ratio: float):
+    """A body-part load (the knee model's foot) scaled as its de Leva segment; an external one
+    (a dumbbell) only moved with its segment's length."""
+    if load.name not in PRESET_PARTS:
+        return replace(load, distance=load.distance * length_ratio)
+    new = segment_values(PRESET_PARTS[load.name], subject)
+    old = segment_values(PRESET_PARTS[load.name], REFERENCE)
+    r_mass = new[0] / old[0]
+    gyration_ratio = math.sqrt((new[3] / new[0] - new[2] ** 2) / (old[3] / old[0] - old[2] ** 2))
+    return replace(load, mass=load.mass * r_mass, distance=load.distance * length_ratio,
+                   inertia=load.inertia * r_mass * gyration_ratio ** 2)
