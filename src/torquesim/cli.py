@@ -660,6 +660,15 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
                    "containing its name). On a one-joint model a bare COLUMN works. Joints "
                    "without a column are simulated, not scored. Also grf_y=COLUMN etc. for a "
                    "ground reaction force or centre-of-mass column of another name.")
+@click.option("--forces", "forces_path", type=click.Path(dir_okay=False), default=None,
+              help="A force-plate file (OpenSim external loads .mot/.sto or CSV, "
+              "ground_force_vx/vy per plate): plates summed, low-passed, resampled onto the "
+              "target's times and fitted as grf_x, grf_y.")
+@click.option("--grf-cutoff", type=float, default=50.0, show_default=True,
+              help="Cut-off of the zero-lag Butterworth low-pass on --forces, Hz.")
+@click.option("--rezero", is_flag=True,
+              help="Subtract the force plates' reading in flight (a drifting zero offset) "
+              "instead of refusing the file.")
 @click.option("--angle-units", "--units", "units", type=click.Choice(["deg", "rad"]),
               help="Units of the target angles (CSV default deg; .mot/.sto: inDegrees).")
 @click.option("--model", "model_path", default="builtin:elbow-curl", show_default=True,
@@ -709,7 +718,8 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
 @click.option("--overwrite", is_flag=True,
               help="Start a new fit in an --out directory that holds an earlier one.")
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
-def fit(target_spec, columns, units, model_path, method, step, search, starts, iterations,
+def fit(target_spec, columns, forces_path, grf_cutoff, rezero, units, model_path, method, step,
+        search, starts, iterations,
         seed, generations, population, polish, max_time, rest_level, bounds, frozen,
         joint_weights, weight_velocity, weight_end, weight_effort, weight_grf, weight_com,
         out_dir, resume, overwrite, quiet):
@@ -750,6 +760,15 @@ def fit(target_spec, columns, units, model_path, method, step, search, starts, i
         target = load_target(target_spec, base, column_map, units)
     except ModelError as exc:
         raise _as_option(exc, {"column": "--column"}) from None
+    if forces_path is not None:
+        from .fitting.target import with_forces
+
+        if target_spec.startswith("builtin:"):
+            raise ModelError("--forces", "with a built-in motion, which has its own forces; "
+                             "allowed: --forces with a --target file")
+        target, lines = with_forces(base, target, forces_path, grf_cutoff, rezero)
+        for line in lines:
+            click.echo(line, err=line.startswith("warning"))
     if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt"):
         for joint, angle in zip(target.joints, target.angles, strict=True):
             if np.max(np.abs(np.degrees(angle))) <= math.pi:

@@ -318,3 +318,47 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
                     {c: angles[column] for c, column in channel_columns.items()})
     check_target(chain, target)
     return target
+
+
+def with_forces(chain, target: Target, path, cutoff: float, rezero: bool = False,
+                ) -> tuple[Target, list[str]]:
+    """``target`` with ``grf_x`` and ``grf_y`` from a force-plate file (plates summed,
+    zero-lag low-passed at ``cutoff`` Hz, interpolated at the target's times; see
+    `torquesim.io.force_plates`), and the lines to tell the user: the plates read, the filter,
+    the body mass of the quiet standing against the model's, a re-zeroing."""
+    from dataclasses import replace
+
+    from ..io.force_plates import (
+        check_zero_offset,
+        grf_channels,
+        read_plates,
+        standing_body_mass,
+    )
+
+    if chain.base != "free" or not chain.contacts:
+        raise ModelError("--forces", f"{chain.name!r} does not stand on the ground; allowed: "
+                         "a model with a free base and ground contacts")
+    totals = read_plates(path)
+    lines = [f"forces        {totals.name}: {len(totals.plates)} plate(s) summed, "
+             f"{totals.rate:.4g} Hz, zero-lag Butterworth low-pass at {cutoff:g} Hz"]
+    weight = chain.weight
+    mass = sum(seg.total_mass for seg in chain.segments)
+    try:
+        standing = standing_body_mass(totals)
+    except ModelError:
+        standing = None
+    if standing is not None:
+        lines.append(f"body mass     {standing:.1f} kg from the quiet standing; the model "
+                     f"{mass:.1f} kg")
+        if abs(standing - mass) > 0.05 * mass:
+            lines.append("warning: the model's mass differs from the subject's by more than "
+                         "5 %: make the model for the subject (torquesim model NAME "
+                         f"--body-mass {standing:.1f} --height H)")
+    totals, said = check_zero_offset(totals, weight, rezero)
+    if said:
+        lines.append(f"zero offset   {said}")
+    channels = grf_channels(totals, target.time, cutoff)
+    out = replace(target, channels={**target.channels, **channels},
+                  source=f"{target.source} + {totals.name} [grf_x, grf_y]")
+    check_target(chain, out)
+    return out, lines

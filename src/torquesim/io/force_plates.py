@@ -1,0 +1,174 @@
+"""Ground reaction forces from a lab's force-plate file, made into a fit's target channels.
+
+A file (OpenSim external-loads ``.mot``/``.sto``, or CSV) holds one or more plates, each as
+columns ``<prefix>ground_force_vx|vy|vz`` (N) and optionally ``<prefix>ground_force_px|py|pz``
+(centre of pressure, m): ``ground_force_vy``, ``1_ground_force_vy``, ``r_ground_force_vy`` …
+(OpenSim's names; y up, x forwards). `plate_totals` sums the plates per component and combines
+their centres of pressure (weighted by each plate's vertical force); `low_pass` filters with a
+zero-lag Butterworth filter; `grf_channels` puts it all onto a target's times.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+from ..errors import ModelError, check_range
+from .target_file import read_angle_table
+
+_FORCE = re.compile(r"^(.*?)ground_force_([vp])([xyz])$", re.IGNORECASE)
+#: A sampling interval more than this many times the median is a gap.
+MAX_STEP_RATIO = 1.5
+#: Default cut-off of the low-pass filter, Hz (jump GRF is commonly filtered at 50–100 Hz).
+DEFAULT_CUTOFF = 50.0
+#: Quiet standing: the first `STANDING_WINDOW` s, if the vertical force's standard deviation
+#: there is below `STANDING_STEADINESS` of its mean.
+STANDING_WINDOW = 0.2
+STANDING_STEADINESS = 0.02
+#: Flight: the vertical force below this fraction of body weight for at least `FLIGHT_MIN` s;
+#: there a zeroed plate reads 0 within `ZERO_TOLERANCE` of body weight.
+FLIGHT_LEVEL = 0.05
+FLIGHT_MIN = 0.05
+ZERO_TOLERANCE = 0.01
+GRAVITY = 9.81
+
+
+@dataclass(frozen=True)
+class PlateTotals:
+    """The plates of a force file summed: time (s), force components (N), centre of pressure
+    along x (m, NaN where the vertical force is below 20 N), sampling rate (Hz), plates'
+    prefixes."""
+
+    name: str
+    time: np.ndarray
+    force_x: np.ndarray
+    force_y: np.ndarray
+    cop_x: np.ndarray
+    rate: float
+    plates: tuple[str, ...]
+
+
+def read_plates(path, field: str = "--forces") -> PlateTotals:
+    """Read a force file and sum its plates (see the module's docstring). Errors name
+    ``field``, the file, and the row and column at fault: no force columns, a cell that is not
+    a finite number, time that does not increase (a duplicated time too), a gap in the
+    sampling."""
+    path = Path(path)
+    plates: dict[str, dict[str, str]] = {}
+
+    def pick(names: list[str]) -> list[str]:
+        for name in names:
+            m = _FORCE.match(name)
+            if m:
+                plates.setdefault(m.group(1), {})[m.group(2).lower() + m.group(3).lower()] = name
+        complete = {p: c for p, c in plates.items() if "vy" in c and "vx" in c}
+        if not complete:
+            raise ModelError(field, f"{path.name}: no force columns; allowed: "
+                             "<plate>ground_force_vx and _vy (N) per plate, OpenSim's names "
+                             "(e.g. ground_force_vy, 1_ground_force_vy)")
+        plates.clear()
+        plates.update(complete)
+        return [c for p in complete.values() for c in p.values()]
+
+    time, columns = read_angle_table(path, None, columns=pick,
+                                     raw=lambda: [c for p in plates.values() for c in p.values()],
+                                     field=field)
+    steps = np.diff(time)
+    typical = float(np.median(steps))
+    gap = int(np.argmax(steps))
+    if steps[gap] > MAX_STEP_RATIO * typical:
+        raise ModelError(field, f"{path.name}: row {gap + 2} (t = {time[gap + 1]:.6g} s), column "
+                         f"'time': a gap of {steps[gap]:.4g} s where the sampling interval is "
+                         f"{typical:.4g} s; allowed: uniform sampling")
+    fx = sum(columns[c["vx"]] for c in plates.values())
+    fy = sum(columns[c["vy"]] for c in plates.values())
+    moment = np.zeros_like(time)
+    for c in plates.values():
+        if "px" in c:
+            moment += columns[c["vy"]] * columns[c["px"]]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cop = np.where(fy > 20.0, moment / np.where(fy > 20.0, fy, 1.0), np.nan)
+    return PlateTotals(path.name, time, fx, fy, cop, 1.0 / typical, tuple(plates))
+
+
+def low_pass(values: np.ndarray, rate: float, cutoff: float) -> np.ndarray:
+    """Zero-lag low-pass: a 2nd-order Butterworth run forwards and backwards
+    (`scipy.signal.filtfilt`, 4th order in effect, no phase shift), cut-off ``cutoff`` Hz at a
+    sampling ``rate`` Hz (the cut-off of the single pass). Its gain at 0 Hz is 1, so the
+    impulse of a record whose ends are steady is kept (tests/test_force_plates.py measures
+    it)."""
+    check_range("--grf-cutoff", cutoff, 0.0, 0.5 * rate, low_open=True, high_open=True,
+                unit=f"Hz (below half the force file's {rate:.4g} Hz sampling rate)")
+    b, a = signal.butter(2, cutoff / (0.5 * rate))
+    return signal.filtfilt(b, a, values)
+
+
+def standing_body_mass(totals: PlateTotals) -> float:
+    """Body mass (kg) from the quiet standing at the file's start: the mean vertical force
+    over its first `STANDING_WINDOW` s over g. An error if the force there is not steady."""
+    window = totals.force_y[totals.time <= totals.time[0] + STANDING_WINDOW]
+    mean = float(np.mean(window))
+    if mean <= 0.0 or float(np.std(window)) > STANDING_STEADINESS * mean:
+        raise ModelError("--forces", f"{totals.name}: the first {STANDING_WINDOW:g} s are not "
+                         f"quiet standing (vertical force {mean:.4g} ± {np.std(window):.3g} N); "
+                         "allowed: a recording that starts standing still, or the model's "
+                         "body mass given (torquesim model --body-mass)")
+    return mean / GRAVITY
+
+
+def check_zero_offset(totals: PlateTotals, weight: float, rezero: bool) -> tuple[PlateTotals,
+                                                                                  str | None]:
+    """Check that the plates read zero in flight (the vertical force below 5 % of body weight
+    for at least 50 ms). A flight mean beyond 1 % of body weight is a drifting zero offset: an
+    error naming the rows, or with ``rezero`` the flight mean subtracted from the whole
+    recording, and said (the returned message)."""
+    low = totals.force_y < FLIGHT_LEVEL * weight
+    start = stop = best = None
+    i = 0
+    while i < low.size:
+        if low[i]:
+            j = i
+            while j < low.size and low[j]:
+                j += 1
+            if best is None or j - i > best[1] - best[0]:
+                best = (i, j)
+            i = j
+        else:
+            i += 1
+    if best is None or (totals.time[best[1] - 1] - totals.time[best[0]]) < FLIGHT_MIN:
+        return totals, None
+    start, stop = best
+    offset = float(np.mean(totals.force_y[start:stop]))
+    if abs(offset) <= ZERO_TOLERANCE * weight:
+        return totals, None
+    rows = f"rows {start + 1}-{stop} (t = {totals.time[start]:.4g}-{totals.time[stop - 1]:.4g} s)"
+    if not rezero:
+        raise ModelError("--forces", f"{totals.name}: {rows}, vertical force: in flight the "
+                         f"plates read {offset:.4g} N, not 0 (a drifting zero offset); "
+                         "allowed: plates zeroed before the trial, or --rezero to subtract "
+                         "the flight's mean")
+    fixed = PlateTotals(totals.name, totals.time, totals.force_x
+                        - float(np.mean(totals.force_x[start:stop])), totals.force_y - offset,
+                        totals.cop_x, totals.rate, totals.plates)
+    return fixed, (f"{totals.name}: zero offset of {offset:.4g} N (the flight's mean, {rows}) "
+                   "subtracted (--rezero)")
+
+
+def grf_channels(totals: PlateTotals, times: np.ndarray, cutoff: float = DEFAULT_CUTOFF,
+                 ) -> dict[str, np.ndarray]:
+    """``grf_x`` and ``grf_y`` (N) low-passed at ``cutoff`` Hz and interpolated at ``times``
+    (s, the target's clock: the force file's own time values are used, so files that start
+    at other times or sample at other rates line up). Times outside the force recording are
+    an error."""
+    if times[0] < totals.time[0] - 1e-9 or times[-1] > totals.time[-1] + 1e-9:
+        raise ModelError("--forces", f"{totals.name}: covers {totals.time[0]:.6g}-"
+                         f"{totals.time[-1]:.6g} s, the target {times[0]:.6g}-"
+                         f"{times[-1]:.6g} s; allowed: a force recording spanning the target")
+    return {"grf_x": np.interp(times, totals.time, low_pass(totals.force_x, totals.rate,
+                                                              cutoff)),
+            "grf_y": np.interp(times, totals.time, low_pass(totals.force_y, totals.rate,
+                                                              cutoff))}
