@@ -659,7 +659,12 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
                    "joint's coordinate, e.g. elbow_flexion, its name, or the only column "
                    "containing its name). On a one-joint model a bare COLUMN works. Joints "
                    "without a column are simulated, not scored. Also grf_y=COLUMN etc. for a "
-                   "ground reaction force or centre-of-mass column of another name.")
+                   "ground reaction force or centre-of-mass column of another name. COLUMN "
+                   "may be an expression in degrees: knee=-knee_angle_r, ankle=118-ankle_angle_r.")
+@click.option("--map", "map_spec", default=None, metavar="NAME|FILE.toml",
+              help="Joint angles from a 3D IK file's coordinates: gait2392 or rajagopal2016 "
+              "(the squat jump's joints from the right leg, pelvis and lumbar), or a TOML file "
+              "with a [targets.map] table of JOINT = \"EXPRESSION\"; --column overrides.")
 @click.option("--forces", "forces_path", type=click.Path(dir_okay=False), default=None,
               help="A force-plate file (OpenSim external loads .mot/.sto or CSV, "
               "ground_force_vx/vy per plate): plates summed, low-passed, resampled onto the "
@@ -718,8 +723,8 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
 @click.option("--overwrite", is_flag=True,
               help="Start a new fit in an --out directory that holds an earlier one.")
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
-def fit(target_spec, columns, forces_path, grf_cutoff, rezero, units, model_path, method, step,
-        search, starts, iterations,
+def fit(target_spec, columns, map_spec, forces_path, grf_cutoff, rezero, units, model_path,
+        method, step, search, starts, iterations,
         seed, generations, population, polish, max_time, rest_level, bounds, frozen,
         joint_weights, weight_velocity, weight_end, weight_effort, weight_grf, weight_com,
         out_dir, resume, overwrite, quiet):
@@ -756,6 +761,14 @@ def fit(target_spec, columns, forces_path, grf_cutoff, rezero, units, model_path
         target_spec = "builtin:curl" if own == "elbow-curl" else model_path
     column_map = (columns[0] if len(columns) == 1 and "=" not in columns[0]
                   else _parse_pairs(columns, "--column", "elbow=r_elbow_flex"))
+    if map_spec is not None:
+        from .fitting.coordinate_map import default_map, map_file
+
+        if isinstance(column_map, str):
+            raise ModelError("--column", f"{column_map!r} with --map; allowed: JOINT=COLUMN")
+        mapped = (map_file(map_spec) if map_spec.lower().endswith(".toml")
+                  else default_map(map_spec, base))
+        column_map = {**mapped, **column_map}
     try:
         target = load_target(target_spec, base, column_map, units)
     except ModelError as exc:

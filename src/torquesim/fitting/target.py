@@ -7,12 +7,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import ModelError
 from ..io.target_file import read_angle_table
 from ..model.body import GROUND_OUTPUTS
+from .coordinate_map import OPTIONAL_COLUMNS, is_expression, parse_expression
 
 #: Sample interval of the built-in targets, s (100 Hz, a usual motion-capture rate).
 BUILTIN_SAMPLE_INTERVAL = 0.01
@@ -245,7 +247,9 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
     file (`torquesim.io.target_file.read_angle_table`). Model joints are matched to
     columns by name (the joint's coordinate, e.g. ``elbow_flexion``; its name; the only column
     containing its name) or by ``columns`` {joint: column}; on a one-joint model ``columns``
-    may be a column name. Joints without a column are simulated but not scored; at least one
+    may be a column name, and a joint's column may be an expression of several
+    (`torquesim.fitting.coordinate_map`: ``"-knee_angle_r"``, ``"118 - ankle_angle_r"``, in
+    degrees). Joints without a column are simulated but not scored; at least one
     joint must be matched. On a body on the ground, columns named after a `CHANNELS` entry
     (``grf_y`` …, as torquesim's results name them; or mapped by ``columns``, e.g.
     {"grf_y": "ground_force_vy"}) are read as they are (N, m) and scored too.
@@ -283,9 +287,22 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
                              f"{', '.join(joint_names + list(CHANNELS))}")
     mapping: dict[str, str] = {}
     channel_columns: dict[str, str] = {}
+    expressions = {j: parse_expression(e, f"column.{j}") for j, e in columns.items()
+                   if j in joint_names and is_expression(e)}
+    absent: set[str] = set()
 
     def pick(names: list[str]) -> list[str]:
+        for joint, (coefficients, _) in expressions.items():
+            for name in coefficients:
+                if name not in names and name in OPTIONAL_COLUMNS:
+                    absent.add(name)
+                elif name not in names:
+                    raise ModelError("column", f"{joint}={columns[joint]}: {Path(spec).name} "
+                                     f"has no column {name!r}; columns: {', '.join(names)}")
         for joint in chain.joints:
+            if joint.name in expressions:
+                mapping[joint.name] = columns[joint.name]
+                continue
             column = columns.get(joint.name) or _auto_column(joint, names,
                                                              chain.n_joints == 1)
             if column is not None:
@@ -304,15 +321,24 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
             raise ModelError("column", f"{', '.join(c for c in columns if c in CHANNELS)}: "
                              f"only a body on the ground has them; {chain.name!r} hangs "
                              "from a fixed base; allowed: JOINT=COLUMN")
-        return list(dict.fromkeys([*mapping.values(), *channel_columns.values()]))
+        read = [c for j, c in mapping.items() if j not in expressions]
+        read += [n for coefficients, _ in expressions.values() for n in coefficients
+                 if n not in absent]
+        return list(dict.fromkeys([*read, *channel_columns.values()]))
 
     time, angles = read_angle_table(spec, units, columns=pick,
                                     raw=lambda: set(channel_columns.values()))
+    for joint, (coefficients, offset) in expressions.items():
+        angles[columns[joint]] = sum((c * angles[n] for n, c in coefficients.items()
+                                      if n not in absent), np.full(time.size,
+                                                                   math.radians(offset)))
     if time[-1] - time[0] > 600.0:
         raise ModelError("target.time", f"{spec}: spans {time[-1] - time[0]:g} s (is the "
                          "time in ms?); allowed: seconds, at most 600 s")
     joints = tuple(mapping)
     described = ", ".join(f"{j}={c}" for j, c in [*mapping.items(), *channel_columns.items()])
+    if absent:
+        described += f"; absent, read as 0: {', '.join(sorted(absent))}"
     target = Target(time, np.array([angles[mapping[j]] for j in joints]), joints,
                     f"{spec} [{described}]",
                     {c: angles[column] for c, column in channel_columns.items()})
