@@ -15,6 +15,9 @@ committed, so this only documents and reproduces them):
 - ``dynamometer/``: knee-extensor trials of one invented subject on an isovelocity
   dynamometer, one CSV per trial (`dynamometer_trials`; its README lists them and the
   parameters they were made from).
+- ``jump/``: a squat jump as a lab records it (`jump_recording`): a whole-body 3D inverse
+  kinematics ``.mot`` at 120 Hz (gait2392 coordinates, both legs) and a two-plate force file
+  at 960 Hz that starts 0.3 s earlier, in the quiet squat.
 """
 
 from __future__ import annotations
@@ -75,6 +78,7 @@ def main() -> None:
         "builtin:curl,builtin:elbow-curl,\n"
         "knee-extension.csv,builtin:knee-extension,knee_flexion\n")
     dynamometer_trials()
+    jump_recording()
 
 
 #: The knee extensor the dynamometer examples were made from (the preset's, changed: a
@@ -137,6 +141,90 @@ Fit them with
     torquesim strength examples/dynamometer/*_*.csv \\
         --passive examples/dynamometer/passive.csv --unit knee_extensor
 """)
+
+
+
+#: The jumper of examples/jump: 72 kg, 1.78 m, female (de Leva), with knee extensors 15 %
+#: stronger than the preset's scaling and the hip and ankle switched on 20 ms later.
+JUMPER = (72.0, 1.78, "female")
+
+
+def jump_recording() -> None:
+    """A squat jump recorded as a lab would: ``jump/ik.mot`` (OpenSim inverse kinematics of a
+    gait2392 model: pelvis, lumbar and both legs in degrees, 120 Hz, 0.3° of noise) and
+    ``jump/grf.mot`` (two plates, one foot each, OpenSim external-loads names, 960 Hz, 4 N of
+    noise, from 0.3 s before the first frame in the still squat). Made by the reference solver
+    on the squat jump made for `JUMPER`, changed as its comment says; the IK coordinates from
+    the planar angles by the gait2392 relations of docs/opensim.md."""
+    from torquesim.model.activation import ActivationProfile, Ramp
+    from torquesim.model.anthropometry import Subject, for_subject
+
+    folder = HERE / "jump"
+    folder.mkdir(exist_ok=True)
+    model = for_subject(ts.load_model("builtin:squat-jump"), Subject(*JUMPER))
+    units = []
+    for unit in model.units:
+        if unit.name == "knee_extensors":
+            unit = replace(unit, parameters=replace(
+                unit.parameters, isometric_torque=1.15 * unit.parameters.isometric_torque,
+                eccentric_torque_max=1.15 * unit.parameters.eccentric_torque_max))
+        if unit.name in ("hip_extensors", "plantarflexors"):
+            first, second = unit.activation.ramps
+            unit = replace(unit, activation=ActivationProfile(
+                unit.activation.initial_level,
+                (Ramp(first.delay + 0.02, first.duration, first.level), second)))
+        units.append(unit)
+    model = model.replace(units=tuple(units))
+    run = ts.simulate(model, "reference", output_step=1 / 960)
+    cols = run.columns()
+    deg = {j.name: np.degrees(run.angle(j.name)) for j in model.joints}
+    foot = math.degrees(model.joints[0].initial_angle)
+    trunk = deg["foot_ground"] + deg["ankle"] + deg["knee"] + deg["hip"]
+    lumbar = 0.3 * (trunk - 180.0)
+    coordinates = {
+        "pelvis_tilt": trunk - 180.0 - lumbar, "pelvis_list": 0.8, "pelvis_rotation": -1.5,
+        "pelvis_tx": cols["hip_joint_x"], "pelvis_ty": cols["hip_joint_y"], "pelvis_tz": 0.0,
+        "hip_flexion_r": lumbar - deg["hip"], "hip_adduction_r": -2.0, "hip_rotation_r": 3.0,
+        "knee_angle_r": -deg["knee"], "ankle_angle_r": (180.0 - foot) - deg["ankle"],
+        "subtalar_angle_r": 0.0, "mtp_angle_r": 0.0,
+        "hip_flexion_l": lumbar - deg["hip"], "hip_adduction_l": -2.0, "hip_rotation_l": 3.0,
+        "knee_angle_l": -deg["knee"], "ankle_angle_l": (180.0 - foot) - deg["ankle"],
+        "subtalar_angle_l": 0.0, "mtp_angle_l": 0.0,
+        "lumbar_extension": lumbar, "lumbar_bending": 0.5, "lumbar_rotation": 0.0,
+    }
+    rng = np.random.default_rng(31)
+    every = slice(None, None, 8)  # 960 Hz → 120 Hz
+    time = run.time[every]
+    ik = {"time": time}
+    for name, value in coordinates.items():
+        value = np.broadcast_to(np.asarray(value, dtype=float), run.time.shape)[every]
+        noise = 0.3 if not name.startswith("pelvis_t") else 0.002
+        ik[name] = value + rng.normal(0.0, noise, time.size)
+    _write_storage(folder / "ik.mot", "Coordinates", ik, in_degrees=True)
+
+    before = np.arange(-0.3, 0.0, 1 / 960)
+    time = np.concatenate([before, run.time])
+    forces = {"time": time}
+    share = 0.5 + 0.03 * np.sin(2 * np.pi * 3 * time)
+    for prefix, part, z in (("", share, 0.1), ("1_", 1 - share, -0.1)):
+        for axis in ("x", "y", "z"):
+            total = cols[f"grf_{axis}"] if axis != "z" else np.zeros_like(run.time)
+            total = np.concatenate([np.full(before.size, total[0]), total])
+            forces[f"{prefix}ground_force_v{axis}"] = total * part + rng.normal(0, 4.0,
+                                                                                time.size)
+        cop = np.concatenate([np.full(before.size, cols["cop_x"][0]), cols["cop_x"]])
+        forces[f"{prefix}ground_force_px"] = np.nan_to_num(cop, nan=0.0)
+        forces[f"{prefix}ground_force_py"] = np.zeros_like(time)
+        forces[f"{prefix}ground_force_pz"] = np.full_like(time, z)
+    _write_storage(folder / "grf.mot", "ExternalLoads", forces, in_degrees=False)
+
+
+def _write_storage(path, title: str, columns: dict, in_degrees: bool) -> None:
+    data = np.column_stack(list(columns.values()))
+    lines = [title, "version=1", f"nRows={data.shape[0]}", f"nColumns={data.shape[1]}",
+             f"inDegrees={'yes' if in_degrees else 'no'}", "endheader", "\t".join(columns)]
+    lines += ["\t".join(f"{v:.6f}" for v in row) for row in data]
+    path.write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

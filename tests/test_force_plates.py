@@ -131,8 +131,9 @@ def test_bad_force_files_are_one_line_errors(edit, words, tmp_path):
 
 
 def test_fit_takes_forces_onto_its_target(tmp_path, monkeypatch, capsys):
-    """fit --target angles.csv --forces plates.mot: the fit's target carries grf_x and grf_y
-    at the angles' times; the quiet standing's mass is reported beside the model's."""
+    """fit --target angles.csv --forces plates.mot --grf-components xy: the fit's target
+    carries grf_x and grf_y at the angles' times; the quiet standing's mass is reported beside
+    the model's."""
     import torquesim.fitting.outputs as outputs
 
     model = ts.load_model("builtin:squat-jump")
@@ -159,7 +160,7 @@ def test_fit_takes_forces_onto_its_target(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(outputs, "fit_and_write", stop)
     with pytest.raises(Reached):
         main(["fit", "--model", "builtin:squat-jump", "--target", str(angles), "--forces",
-              str(forces), "--quiet", "--out", str(tmp_path / "fit")])
+              str(forces), "--grf-components", "xy", "--quiet", "--out", str(tmp_path / "fit")])
     target = seen["target"]
     assert set(target.channels) == {"grf_x", "grf_y"}
     inside = target.time < 0.3

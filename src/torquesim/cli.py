@@ -668,9 +668,12 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
 @click.option("--forces", "forces_path", type=click.Path(dir_okay=False), default=None,
               help="A force-plate file (OpenSim external loads .mot/.sto or CSV, "
               "ground_force_vx/vy per plate): plates summed, low-passed, resampled onto the "
-              "target's times and fitted as grf_x, grf_y.")
+              "target's times and fitted as grf_x, grf_y (--grf-components).")
 @click.option("--grf-cutoff", type=float, default=50.0, show_default=True,
               help="Cut-off of the zero-lag Butterworth low-pass on --forces, Hz.")
+@click.option("--grf-components", type=click.Choice(["y", "xy"]), default="xy",
+              show_default=True,
+              help="Which --forces components are fitted: the vertical (y) or both (xy).")
 @click.option("--rezero", is_flag=True,
               help="Subtract the force plates' reading in flight (a drifting zero offset) "
               "instead of refusing the file.")
@@ -723,7 +726,8 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
 @click.option("--overwrite", is_flag=True,
               help="Start a new fit in an --out directory that holds an earlier one.")
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
-def fit(target_spec, columns, map_spec, forces_path, grf_cutoff, rezero, units, model_path,
+def fit(target_spec, columns, map_spec, forces_path, grf_cutoff, grf_components, rezero, units,
+        model_path,
         method, step, search, starts, iterations,
         seed, generations, population, polish, max_time, rest_level, bounds, frozen,
         joint_weights, weight_velocity, weight_end, weight_effort, weight_grf, weight_com,
@@ -779,7 +783,8 @@ def fit(target_spec, columns, map_spec, forces_path, grf_cutoff, rezero, units, 
         if target_spec.startswith("builtin:"):
             raise ModelError("--forces", "with a built-in motion, which has its own forces; "
                              "allowed: --forces with a --target file")
-        target, lines = with_forces(base, target, forces_path, grf_cutoff, rezero)
+        target, lines = with_forces(base, target, forces_path, grf_cutoff, rezero,
+                                    grf_components)
         for line in lines:
             click.echo(line, err=line.startswith("warning"))
     if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt"):
@@ -868,6 +873,10 @@ def fit(target_spec, columns, map_spec, forces_path, grf_cutoff, rezero, units, 
 @click.option("--se-stiffness", type=click.FloatRange(0.0, 1e6, min_open=True), default=None,
               help="SE stiffness k (N·m/rad) for the CE angle θ_cc = θ ± T/k. Default: the "
               "unit's.")
+@click.option("--limbs", type=click.IntRange(1, 4), default=1, show_default=True,
+              help="Limbs the unit stands for (the squat jump's units are both legs: 2). The "
+              "trials are one limb's: the fit uses the unit's SE stiffness / LIMBS and the "
+              "model gets LIMBS times the fitted T0 and T_max.")
 @click.option("--hold", "held", multiple=True, metavar="NAME=VALUE",
               help="Hold a parameter (SI units) instead of fitting it, e.g. "
               "max_velocity=22 from an independent estimate.")
@@ -890,7 +899,7 @@ def fit(target_spec, columns, map_spec, forces_path, grf_cutoff, rezero, units, 
 @click.option("--overwrite", is_flag=True, help="Replace an earlier strength fit in --out.")
 @click.option("--quiet", is_flag=True, help="No progress lines.")
 def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gravity,
-             se_stiffness, held, above_weight, velocity_tolerance, plateau, starts, seed,
+             se_stiffness, limbs, held, above_weight, velocity_tolerance, plateau, starts, seed,
              out_dir, overwrite, quiet):
     """Fit a unit's maximum voluntary torque T(θ, ω) to isovelocity dynamometer trials.
 
@@ -903,7 +912,7 @@ def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gr
     _quiet_compiling(quiet)
     import time
 
-    from .fitting.strength import PassiveTorque, StrengthSettings, fit_strength
+    from .fitting.strength import PassiveTorque, StrengthSettings, fit_strength, for_limbs
     from .fitting.strength_outputs import (
         STRENGTH_FILES,
         strength_summary,
@@ -932,10 +941,12 @@ def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gr
             raise ModelError("--above-weight", f"{above_weight!r}; allowed: auto or a number "
                              "in [1, 100]") from None
     hold = {name: value for name, (value,) in _parse_assignments(held, "--hold", 1).items()}
+    unit = _strength_unit(model, unit_name, trials, units, torque_sign)
     try:
         settings = StrengthSettings(velocity_tolerance=velocity_tolerance, plateau=plateau,
-                                    above_weight=weight, se_stiffness=se_stiffness, hold=hold,
-                                    starts=starts, seed=seed)
+                                    above_weight=weight,
+                                    se_stiffness=(se_stiffness or unit.parameters.se_stiffness)
+                                    / limbs, hold=hold, starts=starts, seed=seed)
     except ModelError as exc:
         raise _as_option(exc, {"above_weight": "--above-weight", "hold": "--hold"}) from None
     passive = PassiveTorque()
@@ -946,7 +957,6 @@ def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gr
         except ValueError:
             raise ModelError("--gravity", f"{gravity!r}; allowed MOMENT@ANGLE in N·m and "
                              "degrees, e.g. -35@90") from None
-    unit = _strength_unit(model, unit_name, trials, units, torque_sign)
     read = [read_trial(path, units, torque_sign, unit.direction) for path in trials]
     if passive_path is not None:
         passive = PassiveTorque.from_trial(read_trial(passive_path, units, torque_sign,
@@ -956,7 +966,10 @@ def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gr
     fit = fit_strength(read, unit.parameters, unit.direction, settings, passive, progress=say)
     summary = strength_summary(fit, unit=unit.name, model=model_path,
                                trials=[Path(t).name for t in trials], passive=passive,
-                               settings=settings, wall_time=time.perf_counter() - started)
+                               settings=settings, wall_time=time.perf_counter() - started,
+                               limbs=limbs)
+    if limbs > 1:
+        fit = for_limbs(fit, limbs)
     out.mkdir(parents=True, exist_ok=True)
     files = write_strength(out, fit, model, unit.name, summary)
     click.echo("\n".join(summary_lines(summary)))

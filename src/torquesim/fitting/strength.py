@@ -43,7 +43,7 @@ estimate, as Forrester et al. recommend).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import optimize, stats
@@ -572,3 +572,19 @@ def _intervals(result, free, lower, upper, difference, weights, rho):
     half = stats.t.ppf(level, effective) * np.sqrt(np.maximum(np.diag(covariance), 0.0))
     return ({free[i]: (float(result.x[i] - h), float(result.x[i] + h))
              for i, h in zip(keep, half, strict=True)}, at_bound)
+
+
+def for_limbs(fit: StrengthFit, limbs: int) -> StrengthFit:
+    """``fit`` (of one limb's trials) for a unit that stands for ``limbs`` limbs: T0 and T_max
+    times ``limbs``, the SE stiffness the one-limb fit used times ``limbs`` (the other
+    parameters, angles and speeds, are the limb's)."""
+    p = fit.parameters
+    unit = replace(p, isometric_torque=limbs * p.isometric_torque,
+                   eccentric_torque_max=limbs * p.eccentric_torque_max,
+                   se_stiffness=limbs * p.se_stiffness)
+    intervals = {k: (tuple(limbs * v for v in i) if k in ("isometric_torque",
+                                                          "eccentric_torque_max") else i)
+                 for k, i in fit.intervals.items()}
+    return replace(fit, parameters=unit, intervals=intervals,
+                   notes=[*fit.notes, f"the unit stands for {limbs} limbs: T0 and T_max are "
+                          f"{limbs} times the trials' limb's"])

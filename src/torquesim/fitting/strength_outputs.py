@@ -27,9 +27,10 @@ UNITS = {"isometric_torque": "N·m", "eccentric_torque_max": "N·m", "max_veloci
 
 def strength_summary(fit: StrengthFit, *, unit: str, model: str, trials: list[str],
                      passive: PassiveTorque, settings: StrengthSettings,
-                     wall_time: float) -> dict:
-    """The summary of a strength fit as JSON-ready data (SI units; the optimal angle also in
-    degrees)."""
+                     wall_time: float, limbs: int = 1) -> dict:
+    """The summary of a strength fit (of one limb's trials) as JSON-ready data (SI units; the
+    optimal angle also in degrees); with ``limbs`` > 1 it also gives the torques the model gets
+    (``limbs`` times the limb's)."""
     t0 = fit.parameters.isometric_torque
     kinds: dict[str, int] = {}
     for phase in fit.phases:
@@ -58,6 +59,10 @@ def strength_summary(fit: StrengthFit, *, unit: str, model: str, trials: list[st
                      "plateau": settings.plateau, "above_weight": settings.above_weight,
                      "starts": settings.starts, "seed": settings.seed,
                      "hold": dict(settings.hold)},
+        "limbs": limbs,
+        "model_torques_N_m": {"isometric_torque": limbs * t0,
+                              "eccentric_torque_max": limbs
+                              * fit.parameters.eccentric_torque_max},
         "evaluations": fit.evaluations, "wall_time_s": wall_time,
         "notes": list(fit.notes),
     }
@@ -77,7 +82,8 @@ def summary_lines(summary: dict) -> list[str]:
              f"{phases['concentric']} concentric, {phases['eccentric']} eccentric phases), "
              f"{summary['samples']} samples",
              f"gravity       {summary['gravity_and_passive']}",
-             f"SE stiffness  {summary['se_stiffness']:.6g} N·m/rad (held)"]
+             f"SE stiffness  {summary['se_stiffness']:.6g} N·m/rad (held"
+             + (", per limb)" if summary["limbs"] > 1 else ")")]
     for field, entry in summary["parameters"].items():
         value, unit = entry["value"], entry["unit"]
         if entry["interval_95"] is not None:
@@ -96,6 +102,12 @@ def summary_lines(summary: dict) -> list[str]:
         "beneath the fitted function",
         f"wall time     {summary['wall_time_s']:.1f} s ({summary['evaluations']} evaluations)",
     ]
+    if summary["limbs"] > 1:
+        torques = summary["model_torques_N_m"]
+        lines.insert(-1, f"limbs         the unit stands for {summary['limbs']}: the model gets "
+                     f"T0 {torques['isometric_torque']:.4g} N·m, T_max "
+                     f"{torques['eccentric_torque_max']:.4g} N·m (the values above are one "
+                     "limb's)")
     return lines + [f"note: {n}" for n in summary["notes"]]
 
 
@@ -109,7 +121,9 @@ def strength_notes(summary: dict) -> list[str]:
             f"weighted RMS {summary['weighted_rms_N_m']:.3g} N·m "
             f"({summary['weighted_rms_percent_of_T0']:.2g} % of T0), plain RMS "
             f"{summary['rms_N_m']:.3g} N·m; SE stiffness "
-            f"{summary['se_stiffness']:.6g} N·m/rad held; gravity and passive torque "
+            f"{summary['se_stiffness']:.6g} N·m/rad held"
+            + (f" per limb, {summary['limbs']} limbs (T0 and T_max times {summary['limbs']})"
+               if summary["limbs"] > 1 else "") + "; gravity and passive torque "
             f"{summary['gravity_and_passive']}; {fitted}."]
 
 

@@ -347,8 +347,9 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
 
 
 def with_forces(chain, target: Target, path, cutoff: float, rezero: bool = False,
-                ) -> tuple[Target, list[str]]:
-    """``target`` with ``grf_x`` and ``grf_y`` from a force-plate file (plates summed,
+                components: str = "xy") -> tuple[Target, list[str]]:
+    """``target`` with ``grf_y`` (``components="y"``) or ``grf_x`` and ``grf_y`` ("xy") from a
+    force-plate file (plates summed,
     zero-lag low-passed at ``cutoff`` Hz, interpolated at the target's times; see
     `torquesim.io.force_plates`), and the lines to tell the user: the plates read, the filter,
     the body mass of the quiet standing against the model's, a re-zeroing."""
@@ -383,8 +384,11 @@ def with_forces(chain, target: Target, path, cutoff: float, rezero: bool = False
     totals, said = check_zero_offset(totals, weight, rezero)
     if said:
         lines.append(f"zero offset   {said}")
-    channels = grf_channels(totals, target.time, cutoff)
+    if components not in ("y", "xy"):
+        raise ModelError("--grf-components", f"{components!r}; allowed: y, xy")
+    channels = {k: v for k, v in grf_channels(totals, target.time, cutoff).items()
+                if k[-1] in components}
     out = replace(target, channels={**target.channels, **channels},
-                  source=f"{target.source} + {totals.name} [grf_x, grf_y]")
+                  source=f"{target.source} + {totals.name} [{', '.join(channels)}]")
     check_target(chain, out)
     return out, lines
