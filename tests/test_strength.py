@@ -23,10 +23,7 @@ from torquesim.fitting.strength import (
     trial_phases,
 )
 from torquesim.io.dynamometer import read_trial, write_trial
-from torquesim.model.torque_generator import (
-    TorqueGeneratorUnit,
-    maximum_voluntary_torque,
-)
+from torquesim.model.torque_generator import maximum_voluntary_torque
 
 rad = math.radians
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "dynamometer"
@@ -294,4 +291,24 @@ def test_an_invalid_held_value_is_refused_naming_it(subject, passive):
         fit_strength(_trials(subject, noise=1.0, eccentric=False)[:3],
                      _preset_unit().parameters, -1,
                      StrengthSettings(hold={"max_velocity": -3.0}), passive)
-    assert TorqueGeneratorUnit.field_names()[0] == "isometric_torque"
+
+
+def test_a_unit_for_both_legs_gets_twice_one_leg_s_torque(tmp_path):
+    """--limbs 2 on the squat jump's knee_extensors (both legs): the fit uses half the unit's
+    SE stiffness (one leg's), the model gets twice the leg's T0 and T_max and keeps its SE
+    stiffness; the angle and speed parameters are the leg's."""
+    out = tmp_path / "s"
+    assert main(["strength", str(EXAMPLES), "--passive", str(EXAMPLES / "passive.csv"),
+                 "--model", "builtin:squat-jump", "--unit", "knee_extensors", "--limbs", "2",
+                 "--quiet", "--out", str(out)]) == 0
+    summary = json.loads((out / "strength_summary.json").read_text())
+    preset = next(u for u in ts.load_model("builtin:squat-jump").units
+                  if u.name == "knee_extensors").parameters
+    assert summary["se_stiffness"] == pytest.approx(preset.se_stiffness / 2)
+    unit = next(u for u in ts.load_model(str(out / "strength_model.toml")).units
+                if u.name == "knee_extensors").parameters
+    leg = summary["parameters"]
+    assert unit.isometric_torque == pytest.approx(2 * leg["isometric_torque"]["value"])
+    assert unit.eccentric_torque_max == pytest.approx(2 * leg["eccentric_torque_max"]["value"])
+    assert unit.se_stiffness == pytest.approx(preset.se_stiffness)
+    assert unit.optimal_angle == pytest.approx(leg["optimal_angle"]["value"])
