@@ -147,7 +147,11 @@ class FitProblem:
         self.initial_levels = [None if u.activation.initial_level is None
                                else (u.activation.initial_level if self.space.rest_level is None
                                      else self.space.rest_level) for u in base.units]
-        start_angles = dict(zip(self.target.joints, self.target.angles[:, 0], strict=True))
+        # a body on the ground starts from its first frames (its standing equilibrium is
+        # sensitive to their noise); a fixed base from the first sample, as recorded
+        first = (self.target.start_angles() if base.base == "free"
+                 else self.target.angles[:, 0])
+        start_angles = dict(zip(self.target.joints, first, strict=True))
         joints = tuple(j if j.name not in start_angles else
                        _with_angle(j, float(start_angles[j.name])) for j in base.joints)
         try:
