@@ -92,6 +92,8 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
                        "reference_max_error_deg": ref_errors[j][1]}
                    for j in problem.target.joints},
         "channels": channels,
+        **({"take_off": take_off(problem, reference)} if reference.success
+           and "grf_y" in problem.target.channels else {}),
         "objective_deg": outcome.score, "initial_guess_objective_deg": outcome.initial_score,
         "simulations": outcome.simulations, "failed_simulations": outcome.failed_simulations,
         "wall_time_s": outcome.wall_time,
@@ -108,6 +110,40 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         "_results": (fitted, reference),
         "_x": outcome.x,
     }
+
+
+def take_off(problem: FitProblem, reference) -> dict | None:
+    """Take-off of the target and of the reference re-simulation: the first time, after the
+    vertical force has exceeded body weight, that it falls below `FLIGHT_FORCE` of it, and the
+    centre of mass's vertical speed then: the target's from the impulse of its force,
+    ∫(F_y − m·g) dt / m from its first sample (at rest, as a fit starts), the reference's from
+    its own motion. None when either does not leave the ground."""
+    from .initial_guess import FLIGHT_FORCE
+
+    weight = problem.body_weight
+    mass = weight / problem.model.gravity
+
+    def leaves(time, force):
+        pushed = np.flatnonzero(force > weight)
+        if pushed.size == 0:
+            return None
+        after = np.flatnonzero((force < FLIGHT_FORCE * weight)
+                               & (np.arange(force.size) > pushed[0]))
+        return int(after[0]) if after.size else None
+
+    t, force = problem.target.elapsed, problem.target.channels["grf_y"]
+    i = leaves(t, force)
+    columns = reference.columns()
+    j = leaves(reference.time, columns["grf_y"])
+    if i is None or j is None:
+        return None
+    from scipy.integrate import trapezoid
+
+    target_speed = float(trapezoid(force[:i + 1] - weight, t[:i + 1]) / mass)
+    speed = float(columns["com_speed_y"][j])
+    return {"target_s": float(t[i]), "target_speed_m_s": target_speed,
+            "reference_s": float(reference.time[j]), "reference_speed_m_s": speed,
+            "speed_error_percent": 100.0 * (speed - target_speed) / abs(target_speed)}
 
 
 def motion_columns(problem: FitProblem, summary: dict, units: str) -> dict[str, np.ndarray]:
@@ -209,6 +245,12 @@ def summary_lines(summary: dict) -> list[str]:
         lines.append(f"{name:<13} RMS {e['rms_error']:.3f} {e['unit']}, max "
                      f"{e['max_error']:.3f}; reference RMS {e['reference_rms_error']:.3f}, max "
                      f"{e['reference_max_error']:.3f} {e['unit']}")
+    off = summary.get("take_off")
+    if off:
+        lines.append(f"take-off      target {off['target_s']:.3f} s, "
+                     f"{off['target_speed_m_s']:.3f} m/s (from its force's impulse); reference "
+                     f"{off['reference_s']:.3f} s, {off['reference_speed_m_s']:.3f} m/s "
+                     f"({off['speed_error_percent']:+.1f} %)")
     lines += [
         "reference     = the fitted model re-simulated with Radau",
         "activation    mean " + ", ".join(f"{u} {a:.3f}"
