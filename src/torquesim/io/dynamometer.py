@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelError
-from .target_file import read_angle_table
+from .target_file import read_angle_table, sampling_interval
 
 #: Column names a trial file uses (any case); ``velocity`` may be left out.
 TRIAL_COLUMNS = ("angle", "velocity", "torque")
@@ -30,8 +30,6 @@ MIN_TRIAL_DURATION = 0.1
 MAX_SPEED = 40.0
 #: Largest torque accepted, N·m (a larger one is a unit mistake, e.g. N·cm).
 MAX_TORQUE = 5000.0
-#: A sampling interval more than this many times the median is a gap in the recording.
-MAX_STEP_RATIO = 1.5
 
 
 @dataclass(frozen=True)
@@ -117,13 +115,7 @@ def read_trial(path, units: str | None = None, torque_sign: str = "joint", direc
     if time.size < MIN_TRIAL_SAMPLES or time[-1] - time[0] < MIN_TRIAL_DURATION:
         raise fail(f"{time.size} samples over {time[-1] - time[0]:.4g} s; allowed: at least "
                    f"{MIN_TRIAL_SAMPLES} samples over at least {MIN_TRIAL_DURATION} s")
-    steps = np.diff(time)
-    typical = float(np.median(steps))
-    gap = int(np.argmax(steps))
-    if steps[gap] > MAX_STEP_RATIO * typical:
-        raise fail(f"row {gap + 2} (t = {time[gap + 1]:.4g} s), column 'time': a gap of "
-                   f"{steps[gap]:.4g} s where the sampling interval is {typical:.4g} s; "
-                   "allowed: uniform sampling (interpolate the gap or cut the trial)")
+    sampling_interval(time, fail)
     trial_rows = DynamometerTrial(path.name, time, angle, angle, torque, False)
     worst = int(np.argmax(np.abs(angle)))
     if abs(angle[worst]) > 2.0 * math.pi:

@@ -18,11 +18,9 @@ import numpy as np
 from scipy import signal
 
 from ..errors import ModelError, check_range
-from .target_file import read_angle_table
+from .target_file import read_angle_table, sampling_interval
 
 _FORCE = re.compile(r"^(.*?)ground_force_([vp])([xyz])$", re.IGNORECASE)
-#: A sampling interval more than this many times the median is a gap.
-MAX_STEP_RATIO = 1.5
 #: Default cut-off of the low-pass filter, Hz (jump GRF is commonly filtered at 50–100 Hz).
 DEFAULT_CUTOFF = 50.0
 #: Quiet standing: the first `STANDING_WINDOW` s, if the vertical force's standard deviation
@@ -77,13 +75,8 @@ def read_plates(path, field: str = "--forces") -> PlateTotals:
     time, columns = read_angle_table(path, None, columns=pick,
                                      raw=lambda: [c for p in plates.values() for c in p.values()],
                                      field=field)
-    steps = np.diff(time)
-    typical = float(np.median(steps))
-    gap = int(np.argmax(steps))
-    if steps[gap] > MAX_STEP_RATIO * typical:
-        raise ModelError(field, f"{path.name}: row {gap + 2} (t = {time[gap + 1]:.6g} s), column "
-                         f"'time': a gap of {steps[gap]:.4g} s where the sampling interval is "
-                         f"{typical:.4g} s; allowed: uniform sampling")
+    typical = sampling_interval(time, lambda message: ModelError(field,
+                                                                f"{path.name}: {message}"))
     fx = sum(columns[c["vx"]] for c in plates.values())
     fy = sum(columns[c["vy"]] for c in plates.values())
     moment = np.zeros_like(time)

@@ -161,6 +161,23 @@ def read_angle_table(
     return np.array(time), out
 
 
+#: A sampling interval more than this many times the median is a gap in a recording.
+MAX_STEP_RATIO = 1.5
+
+
+def sampling_interval(time: np.ndarray, fail: Callable[[str], ModelError]) -> float:
+    """The median interval of a recording's ``time`` (s); a gap (an interval above
+    `MAX_STEP_RATIO` times it) raises ``fail(message)`` naming the row."""
+    steps = np.diff(time)
+    typical = float(np.median(steps))
+    gap = int(np.argmax(steps))
+    if steps[gap] > MAX_STEP_RATIO * typical:
+        raise fail(f"row {gap + 2} (t = {time[gap + 1]:.6g} s), column 'time': a gap of "
+                   f"{steps[gap]:.4g} s where the sampling interval is {typical:.4g} s; "
+                   "allowed: uniform sampling (interpolate the gap or cut the recording)")
+    return typical
+
+
 def read_angle_history(path, column: str | None = None,
                        units: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
     """One angle history from a file of `read_angle_table`'s formats: ``column``, or
