@@ -96,15 +96,21 @@ class Target:
         return make_smoothing_spline(self.elapsed, self.angles[row])
 
     def start_angles(self) -> np.ndarray:
-        """Each joint's angle at the first sample, rad, from the smoothing spline of
-        `smoothed` (smoothing chosen by generalised cross-validation: a noise-free recording
-        gives its first sample back, a noisy one a value its first frames agree on), so that
-        the recording's noise does not set the start: a standing body's equilibrium is
-        sensitive to it (0.3° of noise tipped the feet of examples/jump from 61.9° to
-        54.8°)."""
+        """Each joint's angle at the first sample, rad: for a recording with noise the value
+        at t0 of the smoothing spline of `smoothed` (a value the first frames agree on); for
+        a noise-free one (a simulated target) the first sample itself. The noise is judged on
+        the first 12 samples: the median |second difference| / (0.6745·√6), the standard
+        deviation of white noise, above `NOISE_FREE`. A standing body's equilibrium is
+        sensitive to the start: 0.3° of noise in the first sample tipped the feet of
+        examples/jump from 61.9° to 54.8°."""
+        start = self.angles[:, 0].copy()
         if self.time.size < 5:
-            return self.angles[:, 0].copy()
-        return np.array([float(self.smoothed(row)(0.0)) for row in range(len(self.joints))])
+            return start
+        first = self.angles[:, :12]
+        noise = np.median(np.abs(np.diff(first, n=2, axis=1)), axis=1) / (0.6745 * math.sqrt(6))
+        for row in np.flatnonzero(noise > NOISE_FREE):
+            start[row] = float(self.smoothed(int(row))(0.0))
+        return start
 
     def angular_velocity(self) -> np.ndarray:
         """dq/dt at the samples, (joints, samples), rad/s (second-order differences)."""
@@ -183,6 +189,9 @@ def _auto_column(joint, names: list[str], one_joint: bool) -> str | None:
     return None
 
 
+#: A target whose first samples show less noise than this (rad, 0.01°) is taken as
+#: noise-free (simulated) and starts from its first sample.
+NOISE_FREE = math.radians(0.01)
 #: Largest median interval between a target's samples, s: a motion recorded in ms instead of
 #: s shows its samples 1 to 10 "s" apart.
 MAX_SAMPLE_INTERVAL = 0.5
