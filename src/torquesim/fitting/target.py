@@ -99,15 +99,17 @@ class Target:
         """Each joint's angle at the first sample, rad: for a recording with noise the value
         at t0 of the smoothing spline of `smoothed` (a value the first frames agree on); for
         a noise-free one (a simulated target) the first sample itself. The noise is judged on
-        the first 12 samples: the median |second difference| / (0.6745·√6), the standard
-        deviation of white noise, above `NOISE_FREE`. A standing body's equilibrium is
+        the first 12 samples: the median |third difference| / (0.6745·√20), the standard
+        deviation of white noise (a smooth motion's third differences are h³ times its jerk,
+        next to nothing), above `NOISE_FREE`. A standing body's equilibrium is
         sensitive to the start: 0.3° of noise in the first sample tipped the feet of
         examples/jump from 61.9° to 54.8°."""
         start = self.angles[:, 0].copy()
         if self.time.size < 5:
             return start
         first = self.angles[:, :12]
-        noise = np.median(np.abs(np.diff(first, n=2, axis=1)), axis=1) / (0.6745 * math.sqrt(6))
+        noise = np.median(np.abs(np.diff(first, n=3, axis=1)), axis=1) / (0.6745
+                                                                          * math.sqrt(20))
         for row in np.flatnonzero(noise > NOISE_FREE):
             start[row] = float(self.smoothed(int(row))(0.0))
         return start
