@@ -113,33 +113,25 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
 
 
 def take_off(problem: FitProblem, reference) -> dict | None:
-    """Take-off of the target and of the reference re-simulation: the first time, after the
-    vertical force has exceeded body weight, that it falls below `FLIGHT_FORCE` of it, and the
+    """Take-off of the target and of the reference re-simulation (`take_off_index` at
+    `FLIGHT_FORCE` of body weight, the threshold the fit's start uses for flight), and the
     centre of mass's vertical speed then: the target's from the impulse of its force,
     ∫(F_y − m·g) dt / m from its first sample (at rest, as a fit starts), the reference's from
     its own motion. None when either does not leave the ground."""
+    from scipy.integrate import trapezoid
+
+    from ..model.contact import take_off_index
     from .initial_guess import FLIGHT_FORCE
 
     weight = problem.body_weight
-    mass = weight / problem.model.gravity
-
-    def leaves(time, force):
-        pushed = np.flatnonzero(force > weight)
-        if pushed.size == 0:
-            return None
-        after = np.flatnonzero((force < FLIGHT_FORCE * weight)
-                               & (np.arange(force.size) > pushed[0]))
-        return int(after[0]) if after.size else None
-
     t, force = problem.target.elapsed, problem.target.channels["grf_y"]
-    i = leaves(t, force)
     columns = reference.columns()
-    j = leaves(reference.time, columns["grf_y"])
+    i = take_off_index(force, FLIGHT_FORCE * weight)
+    j = take_off_index(columns["grf_y"], FLIGHT_FORCE * weight)
     if i is None or j is None:
         return None
-    from scipy.integrate import trapezoid
-
-    target_speed = float(trapezoid(force[:i + 1] - weight, t[:i + 1]) / mass)
+    target_speed = float(trapezoid(force[:i + 1] - weight, t[:i + 1])
+                         * problem.model.gravity / weight)
     speed = float(columns["com_speed_y"][j])
     return {"target_s": float(t[i]), "target_speed_m_s": target_speed,
             "reference_s": float(reference.time[j]), "reference_speed_m_s": speed,

@@ -50,6 +50,7 @@ from scipy import optimize, stats
 
 from ..errors import ModelError, check_range
 from ..io.dynamometer import DynamometerTrial
+from ..io.target_file import longest_run
 from ..model.torque_generator import (
     PACKED_FIELDS,
     PACKED_SLOTS,
@@ -230,19 +231,6 @@ def _phase_rate(time: np.ndarray, torque: np.ndarray) -> np.ndarray:
         coefficients))
 
 
-def _longest_run(mask: np.ndarray) -> tuple[int, int]:
-    """(start, stop) of the longest run of True in ``mask`` ((0, 0) if none)."""
-    best, start = (0, 0), None
-    for i, m in enumerate(np.append(mask, False)):
-        if m and start is None:
-            start = i
-        elif not m and start is not None:
-            if i - start > best[1] - best[0]:
-                best = (start, i)
-            start = None
-    return best
-
-
 def trial_phases(trial: DynamometerTrial, direction: int, stiffness: float,
                  passive: PassiveTorque, settings: StrengthSettings,
                  notes: list[str]) -> list[Phase]:
@@ -267,7 +255,7 @@ def trial_phases(trial: DynamometerTrial, direction: int, stiffness: float,
             speed = sign * float(np.median(signed[signed >= 0.8 * signed.max()]))
             tolerance = max(settings.velocity_tolerance * abs(speed),
                             settings.min_velocity_tolerance)
-            start, stop = _longest_run(np.abs(trial.velocity - speed) <= tolerance)
+            start, stop = longest_run(np.abs(trial.velocity - speed) <= tolerance)
             dt = float(np.median(np.diff(trial.time)))
             if stop - start < max(5, int(math.ceil(MIN_PHASE / dt))):
                 raise fail(f"no constant-velocity phase: the velocity stays within "

@@ -18,7 +18,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import ModelError, check_range
-from .target_file import read_angle_table, sampling_interval
+from .target_file import longest_run, read_angle_table, sampling_interval
 
 _FORCE = re.compile(r"^(.*?)ground_force_([vp])([xyz])$", re.IGNORECASE)
 #: Default cut-off of the low-pass filter, Hz (jump GRF is commonly filtered at 50–100 Hz).
@@ -119,22 +119,9 @@ def check_zero_offset(totals: PlateTotals, weight: float, rezero: bool) -> tuple
     for at least 50 ms). A flight mean beyond 1 % of body weight is a drifting zero offset: an
     error naming the rows, or with ``rezero`` the flight mean subtracted from the whole
     recording, and said (the returned message)."""
-    low = totals.force_y < FLIGHT_LEVEL * weight
-    start = stop = best = None
-    i = 0
-    while i < low.size:
-        if low[i]:
-            j = i
-            while j < low.size and low[j]:
-                j += 1
-            if best is None or j - i > best[1] - best[0]:
-                best = (i, j)
-            i = j
-        else:
-            i += 1
-    if best is None or (totals.time[best[1] - 1] - totals.time[best[0]]) < FLIGHT_MIN:
+    start, stop = longest_run(totals.force_y < FLIGHT_LEVEL * weight)
+    if stop == start or totals.time[stop - 1] - totals.time[start] < FLIGHT_MIN:
         return totals, None
-    start, stop = best
     offset = float(np.mean(totals.force_y[start:stop]))
     if abs(offset) <= ZERO_TOLERANCE * weight:
         return totals, None

@@ -178,6 +178,17 @@ def sampling_interval(time: np.ndarray, fail: Callable[[str], ModelError]) -> fl
     return typical
 
 
+def longest_run(mask: np.ndarray) -> tuple[int, int]:
+    """(start, stop) of the longest run of True in ``mask`` (the first of equal ones; (0, 0)
+    if none): a recording's constant-speed phase, a force file's flight."""
+    edges = np.diff(np.concatenate([[0], np.asarray(mask, dtype=np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    if starts.size == 0:
+        return 0, 0
+    k = int(np.argmax(stops - starts))
+    return int(starts[k]), int(stops[k])
+
+
 def read_angle_history(path, column: str | None = None,
                        units: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
     """One angle history from a file of `read_angle_table`'s formats: ``column``, or

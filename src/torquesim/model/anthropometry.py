@@ -154,7 +154,8 @@ def for_subject(model, subject: Subject):
                                 inertia_about_joint=seg.inertia_about_joint * r_inertia,
                                 loads=loads))
     out = []
-    for seg in segments:
+    parents = model.parents
+    for k, seg in enumerate(segments):
         changes = {}
         if seg.name == REMAINDER:
             mass = subject.body_mass - body
@@ -163,8 +164,8 @@ def for_subject(model, subject: Subject):
                            length=seg.length * height_ratio,
                            inertia_about_joint=seg.inertia_about_joint * r_mass
                            * height_ratio ** 2)
-        if seg.parent_distance is not None:
-            parent = seg.parent or _previous(model, seg.name)
+        if seg.parent_distance is not None and parents[k] >= 0:
+            parent = model.segments[parents[k]].name
             changes["parent_distance"] = seg.parent_distance * length_ratio[parent]
         out.append(replace(seg, **changes) if changes else seg)
     points = tuple(replace(p, distance=p.distance * length_ratio[p.segment],
@@ -184,11 +185,6 @@ def for_subject(model, subject: Subject):
             "preset's, for its reference man.")
     return model.replace(segments=tuple(out), points=points, units=units,
                          notes=(note, *model.notes))
-
-
-def _previous(model, name: str) -> str:
-    names = [s.name for s in model.segments]
-    return names[names.index(name) - 1]
 
 
 def _scaled_load(load, subject: Subject, length_ratio: float):

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 from numba import njit
 
 from ..errors import check_name, check_range
@@ -129,3 +130,12 @@ def contact_stiffness(height, vertical_speed, rows, c):
     if spring * (1.0 - damping * vertical_speed) <= 0.0:
         return 0.0, 0.0
     return n * spring / depth * (1.0 - damping * vertical_speed), spring * damping
+
+
+def take_off_index(grf_y: np.ndarray, threshold: float = 0.0) -> int | None:
+    """The first sample whose vertical ground reaction force (N) is at or below ``threshold``
+    after one above it (None: the body never leaves the ground). A simulation's force is 0 in
+    flight (threshold 0); a measured one is noisy (a threshold such as 1 % of body weight)."""
+    loaded = grf_y > threshold
+    off = np.flatnonzero(~loaded & np.maximum.accumulate(loaded))
+    return int(off[0]) if off.size else None

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ModelError, check_range
+from ..model.contact import take_off_index
 
 #: Goal name → (needs a joint, needs an angle, unit of its value, needs ground contacts).
 GOALS = {
@@ -112,14 +113,6 @@ class Trial:
                                               ("grf_y", "grf_y"))}
         return cls(elapsed, angles, speeds, activations,
                    gravity=model.gravity, **ground)
-
-
-def take_off_index(grf_y: np.ndarray) -> int | None:
-    """The first sample with no vertical ground reaction force after one with some (None:
-    the body never leaves the ground)."""
-    loaded = grf_y > 0.0
-    off = np.flatnonzero(~loaded & np.maximum.accumulate(loaded))
-    return int(off[0]) if off.size else None
 
 
 def jump_height(trial: Trial, take_off: int | None) -> tuple[float, str]:
