@@ -111,16 +111,17 @@ def test_the_docs_list_every_preset():
 
 
 def test_the_squat_jump_note_says_what_its_profiles_hold():
-    """The note gave '150 ms at full level' where the file holds 50 and 100 ms."""
+    """The note gave '150 ms at full level' where the file held 50 and 100 ms: every
+    extensor's start and hold (ms) and every antagonist's level are in the note."""
     model = ts.load_model("builtin:squat-jump")
     notes = " ".join(model.notes)
     for unit in model.units:
         ramps = unit.activation.ramps
-        if ramps and ramps[0].level == 1.0:
-            held = round(ramps[1].delay * 1e3)
-            assert f"{held} ms ({'ankle' if unit.joint == 'ankle' else ''}" in notes \
-                or f"{held} ms (knee, hip)" in notes, (unit.name, held)
-    assert "150 ms at full" not in notes
+        if ramps[0].level == 1.0:
+            start, held = round(ramps[0].delay * 1e3), round(ramps[1].delay * 1e3)
+            assert f"at {start} ms" in notes and f" {held}" in notes, (unit.name, start, held)
+        else:
+            assert f"to {ramps[0].level:g}" in notes, unit.name
     assert math.isclose(model.duration, 0.55)
 
 

@@ -63,7 +63,7 @@ def test_the_built_in_jump_target_is_the_preset_by_the_reference(jump, target):
     assert target.channels["grf_y"][0] == pytest.approx(weight, rel=1e-6)  # standing
     assert target.channels["grf_y"][-1] == 0.0  # in flight
     flying = flight_samples(jump, target, target.elapsed)
-    assert 0.34 < target.elapsed[np.argmax(flying)] < 0.36  # take-off
+    assert 0.25 < target.elapsed[np.argmax(flying)] < 0.28  # take-off
 
 
 def test_the_objective_scores_the_channels_in_their_units(jump, target):
@@ -211,4 +211,4 @@ def test_take_off_speed_from_the_force_target_s_impulse(jump, target):
     off = take_off(problem, reference)
     assert abs(off["speed_error_percent"]) < 2.0
     assert abs(off["target_s"] - off["reference_s"]) <= 0.005
-    assert 1.3 < off["reference_speed_m_s"] < 1.7  # the preset's 1.48 m/s (docs/presets.md)
+    assert 2.2 < off["reference_speed_m_s"] < 2.4  # the preset's 2.30 m/s (docs/presets.md)

@@ -143,7 +143,7 @@ def squat_jump() -> ChainModel:
     """A squat jump from a static squat: foot, shank, thigh and head-arms-trunk (both legs
     together) on a free base, standing on toe and heel contacts; the extensors of ankle, knee
     and hip switch on from the static squat, hip first, and the body leaves the ground at
-    ≈0.24 s nearly vertically (take-off 2.31 m/s up, −0.04 m/s back; flight 0.27 m)."""
+    ≈0.26 s nearly vertically (take-off 2.30 m/s up, −0.05 m/s back; flight 0.27 m)."""
     foot_mass = 2 * 0.0137 * BODY_MASS
     foot = Segment("foot", foot_mass, 0.06, foot_mass * (0.06**2 + (0.245 * 0.2581) ** 2), 0.17)
     shank_mass, shank_com, shank_inertia = _de_leva(2 * 0.0433, 0.4340, 1 - 0.4459, 0.255)
@@ -171,8 +171,8 @@ def squat_jump() -> ChainModel:
 
     def push(delay: float, hold: float) -> ActivationProfile:
         """Extensor: from its standing level to full in 50 ms after ``delay``, held ``hold``
-        s, off (0.05) in 30 ms."""
-        return ActivationProfile(None, (Ramp(delay, 0.05, 1.0), Ramp(hold, 0.03, 0.05)))
+        s, off (0.05) in 50 ms."""
+        return ActivationProfile(None, (Ramp(delay, 0.05, 1.0), Ramp(hold, 0.05, 0.05)))
 
     def brace(start: float, level: float, hold: float | None) -> ActivationProfile:
         """Antagonist: 0.1 in the squat, on to ``level`` in 50 ms at ``start`` (just before
@@ -183,19 +183,20 @@ def squat_jump() -> ChainModel:
         return ActivationProfile(0.1, ramps)
 
     units = (
-        Unit("plantarflexors", "ankle", 1, _leg_unit(350.0, 2.0, 4000.0), push(0.105, 0.065)),
+        Unit("plantarflexors", "ankle", 1, _leg_unit(350.0, 2.0, 4000.0), push(0.125, 0.06)),
         Unit("dorsiflexors", "ankle", -1, _leg_unit(100.0, 1.6, 1500.0),
-             brace(0.215, 0.33, None)),
-        Unit("knee_extensors", "knee", -1, _leg_unit(550.0, 1.2, 5000.0), push(0.03, 0.135)),
-        Unit("knee_flexors", "knee", 1, _leg_unit(200.0, 0.8, 2500.0), brace(0.215, 0.46, 0.04)),
-        Unit("hip_extensors", "hip", 1, _leg_unit(650.0, -1.4, 6000.0), push(0.01, 0.15)),
-        Unit("hip_flexors", "hip", -1, _leg_unit(250.0, -1.0, 3000.0), brace(0.21, 0.32, 0.085)),
+             brace(0.235, 0.32, None)),
+        Unit("knee_extensors", "knee", -1, _leg_unit(550.0, 1.2, 5000.0), push(0.045, 0.13)),
+        Unit("knee_flexors", "knee", 1, _leg_unit(200.0, 0.8, 2500.0), brace(0.23, 0.44, 0.085)),
+        Unit("hip_extensors", "hip", 1, _leg_unit(650.0, -1.4, 6000.0), push(0.03, 0.15)),
+        Unit("hip_flexors", "hip", -1, _leg_unit(250.0, -1.0, 3000.0), brace(0.235, 0.31, 0.11)),
     )
     points = (Point("toe", "foot", 0.17), Point("heel", "foot", -0.0064, -0.094),
               Point("hip_joint", "thigh", 0.4222))
+    contacts = (GroundContact("toe", slip_speed=0.15), GroundContact("heel", slip_speed=0.15))
     return ChainModel(
         "squat-jump", (foot, shank, thigh, hat), joints, units, duration=0.55, base="free",
-        points=points, contacts=(GroundContact("toe"), GroundContact("heel")), notes=(
+        points=points, contacts=contacts, notes=(
             "Both legs together. Foot 1.37 %, shank 4.33 %, thigh 14.16 % of 73 kg (x2); shank "
             "0.434 m, CoM 44.59 % from the knee, radius of gyration 25.5 %; thigh 0.4222 m, "
             "CoM 40.95 % from the hip, 32.9 %; foot radius of gyration 24.5 % of 0.258 m (de "
@@ -208,12 +209,14 @@ def squat_jump() -> ChainModel:
             "hip extensors 650 N m; antagonists 100-250 N m. SE stiffness 4000, 5000 and 6000 "
             "N m/rad for the extensors, 9-11 T0 per rad (est.).",
             "Ground contacts at toe and heel: Hunt-Crossley k = 5e6 N/m^1.5, n = 1.5, c = 1 s/m, "
-            "regularised Coulomb friction mu = 0.8, slip speed 0.1 m/s (est.).",
-            "Extensors on from the static squat, proximal to distal (hip at 10 ms, knee at 30 "
-            "ms, ankle at 105 ms; 50 ms ramps to 1), held at full level for 150, 135 and 65 ms, "
-            "then off (0.05) in 30 ms. Antagonists at 0.1 in the squat, braced for the flight "
-            "from 210-215 ms (50 ms ramps: knee flexors to 0.46 for 40 ms, hip flexors to 0.32 "
-            "for 85 ms, then back to 0.1; dorsiflexors to 0.33). Timings chosen (CMA-ES on the "
+            "regularised Coulomb friction mu = 0.8, slip speed 0.15 m/s "
+            "(est.; at 0.1 m/s the friction's time constant during the push would hold every "
+            "fixed step below 0.25 ms).",
+            "Extensors on from the static squat, proximal to distal (hip at 30 ms, knee at 45 "
+            "ms, ankle at 125 ms; 50 ms ramps to 1), held at full level for 150, 130 and 60 ms, "
+            "then off (0.05) in 50 ms. Antagonists at 0.1 in the squat, braced for the flight "
+            "from 230-235 ms (50 ms ramps: knee flexors to 0.44 for 85 ms, hip flexors to 0.31 "
+            "for 110 ms, then back to 0.1; dorsiflexors to 0.32). Timings chosen (CMA-ES on the "
             "preset, 16 timings and levels) for a flight near 0.28 m, |v_x| < 0.1 m/s at "
             "take-off and no end stop above 5 % of its joint's peak torque; recorded squat "
             "jumps of active adults fly 0.25-0.35 m.",))
