@@ -29,6 +29,7 @@ PAGES = {
     "docs/concepts.md": {"techniques"},
     "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",
                         "motion-squat-jump"},
+    "docs/model.md": {"contacts-squat-jump"},
 }
 #: The presets whose motion `preset_motion_blocks` describes, in page order.
 MOTION_PRESETS = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump")
@@ -73,18 +74,56 @@ def preset_motion_blocks() -> dict[str, str]:
         run = ts.simulate(model, "reference", output_step=1e-4 if ground else 1e-3)
         if ground:
             e = run.ground_events()
+            c = run.columns()
+            i = int(np.searchsorted(run.time, e.take_off))
             end = "in the air" if e.landing is None else f"after landing at {e.landing:.3f} s"
-            text = (f"Motion (Radau): take-off at {e.take_off:.3f} s, centre of mass "
-                    f"{e.rise:.3f} m above the squat at its apex ({e.apex_time:.3f} s), of which "
-                    f"the flight adds {e.flight_height:.3f} m; peak ground reaction force "
-                    f"{e.peak_force:.0f} N ({e.peak_force / e.weight:.2f} body weights) at "
-                    f"{e.peak_time:.3f} s. The run ends {end} at {model.duration:g} s.")
+            stops = [(np.abs(c[f"torque_passive_{j.name}"]).max(),
+                      np.abs(c[f"torque_net_{j.name}"]).max(), j.name)
+                     for j in model.joints if j.endstop_torque > 0]
+            passive, peak, joint = max(stops, key=lambda s: s[0] / s[1])
+            text = (f"Motion (Radau): take-off at {e.take_off:.3f} s at "
+                    f"{c['com_speed_y'][i]:.2f} m/s up and {c['com_speed_x'][i]:+.3f} m/s "
+                    f"forwards; centre of mass {e.rise:.3f} m above the squat at its apex "
+                    f"({e.apex_time:.3f} s), of which the flight adds {e.flight_height:.3f} m; "
+                    f"peak ground reaction force {e.peak_force:.0f} N "
+                    f"({e.peak_force / e.weight:.2f} body weights) at {e.peak_time:.3f} s. The "
+                    f"largest end-stop torque is the {joint}'s, {passive:.2f} N·m "
+                    f"({100 * passive / peak:.1f} % of its peak muscle torque, {peak:.0f} N·m). "
+                    f"The run ends {end} at {model.duration:g} s.")
         else:
             parts = [f"{j.name} {_swing(run.time, run.q[:, k])}"
                      for k, j in enumerate(model.joints)]
             text = f"Motion (Radau): {'; '.join(parts)}, in {model.duration:g} s."
         blocks[f"motion-{name}"] = text + "\n"
     return blocks
+
+
+def contact_blocks() -> dict[str, str]:
+    """For docs/model.md §9: how far the squat jump's loaded contacts creep during the
+    push-off and the contacts' smallest time constant over the run, at the preset's slip
+    speed and two smaller ones (IMEX at a step well inside each one's limit; a few seconds)."""
+    import dataclasses
+
+    import torquesim as ts
+
+    model = ts.load_model("builtin:squat-jump")
+    preset_speed = model.contacts[0].slip_speed
+    parts = []
+    for speed, step in ((preset_speed, 1e-4), (0.1, 5e-5), (0.01, 5e-6)):
+        varied = model.replace(contacts=tuple(dataclasses.replace(c, slip_speed=speed)
+                                              for c in model.contacts))
+        run = ts.simulate(varied, "imex", step, check=False, advise=False, tolerance=None)
+        c = run.columns()
+        off = int(np.searchsorted(run.time, run.ground_events().take_off))
+        creep = {}
+        for contact in model.contacts:
+            x = c[f"{contact.point}_x"][:off][c[f"grf_y_{contact.point}"][:off] > 0]
+            creep[contact.point] = 1e3 * (x.max() - x.min())
+        tau = 1e3 * run.settings["contact_time_constant_min_s"]
+        moved = ", the ".join(f"{p} {mm:.2f} mm" for p, mm in creep.items())
+        parts.append(f"at v_s = {speed:g} m/s{' (the preset)' if speed == preset_speed else ''} "
+                     f"the loaded {moved} slide, and the smallest time constant is {tau:.3g} ms")
+    return {"contacts-squat-jump": "On the squat jump: " + "; ".join(parts) + ".\n"}
 
 
 def current_block(page: str, name: str) -> str:

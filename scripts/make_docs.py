@@ -31,6 +31,7 @@ from pathlib import Path
 
 from docblocks import (  # noqa: E402  (scripts/)
     ROOT,
+    contact_blocks,
     current_block,
     missing_blocks,
     preset_motion_blocks,
@@ -232,6 +233,12 @@ def main() -> None:
                  "python scripts/make_docs.py --presets")
     if stale:
         write_blocks("docs/presets.md", {name: motions[name] for name in stale})
+    contacts = contact_blocks()
+    if current_block("docs/model.md", "contacts-squat-jump") != contacts["contacts-squat-jump"]:
+        if args.check:
+            sys.exit("docs/model.md: the squat jump's contact figures differ; run "
+                     "python scripts/make_docs.py --presets")
+        write_blocks("docs/model.md", contacts)
     if args.check and not args.skip_optima:
         problems = check_optimise_spread()
         if problems:
