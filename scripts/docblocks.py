@@ -120,9 +120,11 @@ def contact_blocks() -> dict[str, str]:
             x = c[f"{contact.point}_x"][:off][c[f"grf_y_{contact.point}"][:off] > 0]
             creep[contact.point] = 1e3 * (x.max() - x.min())
         tau = 1e3 * run.settings["contact_time_constant_min_s"]
-        moved = ", the ".join(f"{p} {mm:.2f} mm" for p, mm in creep.items())
+        slid = [f"{p} {mm:.2f} mm" for p, mm in creep.items()]
+        moved = f"the {slid[0].replace(' ', ' slides ', 1)}" + "".join(f", the {x}"
+                                                                      for x in slid[1:])
         parts.append(f"at v_s = {speed:g} m/s{' (the preset)' if speed == preset_speed else ''} "
-                     f"the loaded {moved} slide, and the smallest time constant is {tau:.3g} ms")
+                     f"{moved} while loaded, and the contacts' smallest time constant is {tau:.3g} ms")
     return {"contacts-squat-jump": "On the squat jump: " + "; ".join(parts) + ".\n"}
 
 

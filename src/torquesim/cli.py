@@ -386,11 +386,19 @@ def _announce_size(model, method, step, duration, out_path) -> None:
               help="The subject's standing height (m, 1.0-2.5; with --body-mass).")
 @click.option("--sex", type=click.Choice(["male", "female"]), default=None,
               help="The subject's sex, for de Leva's tables. Default: male.")
-def model(name, out_path, plot_path, body_mass, height, sex):
+@click.option("--measurements", "measurements", type=click.Path(dir_okay=False), default=None,
+              help="Make the built-in model from the subject's own measurements: a Yeadon "
+                   "measurement file (95 lengths, perimeters and widths; the yeadon package's "
+                   "meastemplate.txt). --body-mass then scales the densities to the weighed "
+                   "mass and --height (default: from the measurements) scales the strengths.")
+@click.option("--densities", type=click.Choice(["Dempster", "Chandler", "Clauser"]),
+              default="Dempster", show_default=True,
+              help="Segment densities of Yeadon's model (with --measurements).")
+def model(name, out_path, plot_path, body_mass, height, sex, measurements, densities):
     """Write a model as an editable TOML file: a preset (NAME is one of the presets listed by
     `torquesim simulate --help`; builtin: prefix optional), made for a subject with
-    --body-mass and --height, or a checked, rewritten copy of a model file; or draw it with
-    --plot."""
+    --body-mass and --height (de Leva) or --measurements (Yeadon), or a checked, rewritten
+    copy of a model file; or draw it with --plot."""
     from .io.model_file import load_model, save_model
     from .model.presets import PREFIX, PRESETS
 
@@ -404,20 +412,46 @@ def model(name, out_path, plot_path, body_mass, height, sex):
                          f"{', '.join(PRESETS)} or a model file")
     source = PREFIX + name if name in PRESETS else name
     chain = load_model(source)
-    if body_mass is not None or height is not None or sex is not None:
+    personal = body_mass is not None or height is not None or sex is not None
+    if (personal or measurements is not None) and not source.startswith(PREFIX):
+        option = "--measurements" if measurements is not None else "--body-mass"
+        raise ModelError(option, f"{name!r} is a model file; allowed: a built-in model "
+                         f"({', '.join(PRESETS)}), whose segments are de Leva's")
+    options = {"body_mass": "--body-mass", "height": "--height"}
+    if measurements is not None:
+        from .model.anthropometry import for_measured
+        from .model.yeadon_body import read_measurements
+
+        if sex is not None:
+            raise ModelError("--sex", "not used with --measurements (Yeadon's model takes the "
+                             "subject's own shape); allowed: --sex only with --body-mass and "
+                             "--height")
+        if body_mass is not None:
+            from .errors import check_range
+
+            check_range("--body-mass", body_mass, 20.0, 250.0, unit="kg")
+        body = read_measurements(measurements, body_mass, densities)
+        for said in body.warnings:
+            click.echo(f"note: yeadon: {said}", err=True)
+        try:
+            chain = for_measured(chain, body, body_mass, height)
+        except ModelError as exc:
+            raise _as_option(exc, options) from None
+        click.echo(f"measured body {body.mass:.1f} kg, standing height "
+                   f"{body.height if height is None else height:.3f} m"
+                   f"{' (from the measurements)' if height is None else ''}")
+    elif personal:
         from .model.anthropometry import Subject, for_subject
 
         if body_mass is None or height is None:
             missing = "--height" if height is None else "--body-mass"
             raise ModelError(missing, "required to make a model for a subject; allowed: "
-                             "--body-mass KG --height M [--sex male|female]")
-        if not source.startswith(PREFIX):
-            raise ModelError("--body-mass", f"{name!r} is a model file; allowed: a built-in "
-                             f"model ({', '.join(PRESETS)}), whose segments are de Leva's")
+                             "--body-mass KG --height M [--sex male|female], or "
+                             "--measurements FILE")
         try:
             chain = for_subject(chain, Subject(body_mass, height, sex or "male"))
         except ModelError as exc:
-            raise _as_option(exc, {"body_mass": "--body-mass", "height": "--height"}) from None
+            raise _as_option(exc, options) from None
     if out_path:
         save_model(chain, out_path, "--out")
         click.echo(f"wrote {out_path}")

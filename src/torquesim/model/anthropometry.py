@@ -27,6 +27,7 @@ import math
 from dataclasses import dataclass, replace
 
 from ..errors import ModelError, check_range
+from .yeadon_body import Part
 
 SEXES = ("male", "female")
 #: de Leva (1996) Table 4: (length m, mass fraction, CoM from proximal fraction, sagittal
@@ -129,11 +130,7 @@ def for_subject(model, subject: Subject):
     """``model`` (a preset, built for `REFERENCE`) made for ``subject`` (see the module's
     docstring for each rule). A model with a segment that is neither in `PRESET_PARTS` nor
     the remainder is refused."""
-    known = [s.name for s in model.segments if s.name in PRESET_PARTS or s.name == REMAINDER]
-    unknown = [s.name for s in model.segments if s.name not in known]
-    if unknown:
-        raise ModelError("body_mass", f"{model.name}: segment {unknown[0]!r} has no de Leva "
-                         "segment; allowed: the built-in models")
+    _refuse_unknown(model)
     height_ratio = subject.height / REFERENCE.height
     length_ratio: dict[str, float] = {}
     segments = []
@@ -153,21 +150,41 @@ def for_subject(model, subject: Subject):
                                 com_distance=seg.com_distance * r_com,
                                 inertia_about_joint=seg.inertia_about_joint * r_inertia,
                                 loads=loads))
+    for k, seg in enumerate(segments):
+        if seg.name == REMAINDER:
+            mass = subject.body_mass - body
+            segments[k] = replace(seg, mass=mass, com_distance=seg.com_distance * height_ratio,
+                                  length=seg.length * height_ratio,
+                                  inertia_about_joint=seg.inertia_about_joint * mass / seg.mass
+                                  * height_ratio ** 2)
+    note = (f"Made for a {subject.sex} subject of {subject.body_mass:g} kg and "
+            f"{subject.height:g} m: segments scaled from the preset (built for de Leva's 73 kg, "
+            "1.741 m man) by the ratios of the subject's de Leva (1996, Table 4) segment masses, "
+            "lengths, centres of mass and inertias to the reference man's; head-arms-trunk "
+            "the body mass left over, its lengths with the height; external loads unchanged; ")
+    return _finish(model, segments, length_ratio, subject, note)
+
+
+def _refuse_unknown(model) -> None:
+    """A model with a segment that is neither a de Leva part nor the remainder: one line."""
+    unknown = [s.name for s in model.segments
+               if s.name not in PRESET_PARTS and s.name != REMAINDER]
+    if unknown:
+        raise ModelError("body_mass", f"{model.name}: segment {unknown[0]!r} has no de Leva "
+                         "segment; allowed: the built-in models")
+
+
+def _finish(model, segments, length_ratio: dict, subject: Subject, note: str, joints=None):
+    """The model with ``segments``; parent distances and points moved with their segment's
+    length ratio; each unit's T0, T_max and SE stiffness times (body mass × height) / (73 kg ×
+    1.741 m); ``note`` (with the strength factor appended) before the preset's notes."""
     out = []
     parents = model.parents
     for k, seg in enumerate(segments):
-        changes = {}
-        if seg.name == REMAINDER:
-            mass = subject.body_mass - body
-            r_mass = mass / seg.mass
-            changes = dict(mass=mass, com_distance=seg.com_distance * height_ratio,
-                           length=seg.length * height_ratio,
-                           inertia_about_joint=seg.inertia_about_joint * r_mass
-                           * height_ratio ** 2)
         if seg.parent_distance is not None and parents[k] >= 0:
             parent = model.segments[parents[k]].name
-            changes["parent_distance"] = seg.parent_distance * length_ratio[parent]
-        out.append(replace(seg, **changes) if changes else seg)
+            seg = replace(seg, parent_distance=seg.parent_distance * length_ratio[parent])
+        out.append(seg)
     points = tuple(replace(p, distance=p.distance * length_ratio[p.segment],
                            offset=p.offset * length_ratio[p.segment]) for p in model.points)
     strength = (subject.body_mass * subject.height) / (REFERENCE.body_mass * REFERENCE.height)
@@ -175,16 +192,149 @@ def for_subject(model, subject: Subject):
         u.parameters, isometric_torque=u.parameters.isometric_torque * strength,
         eccentric_torque_max=u.parameters.eccentric_torque_max * strength,
         se_stiffness=u.parameters.se_stiffness * strength)) for u in model.units)
-    note = (f"Made for a {subject.sex} subject of {subject.body_mass:g} kg and "
-            f"{subject.height:g} m: segments scaled from the preset (built for de Leva's 73 kg, "
-            "1.741 m man) by the ratios of the subject's de Leva (1996, Table 4) segment masses, "
-            "lengths, centres of mass and inertias to the reference man's; head-arms-trunk "
-            "the body mass left over, its lengths with the height; external loads unchanged; "
-            f"T0, T_max and SE stiffness times {strength:.4g} (body mass x height, est.; no sex "
-            "or age factor: fit strengths with torquesim strength). The notes below are the "
-            "preset's, for its reference man.")
+    note += (f"T0, T_max and SE stiffness times {strength:.4g} (body mass x height, est.; no "
+             "sex or age factor: fit strengths with torquesim strength). The notes below are "
+             "the preset's, for its reference man.")
     return model.replace(segments=tuple(out), points=points, units=units,
+                         joints=model.joints if joints is None else joints,
                          notes=(note, *model.notes))
+
+
+#: The reference man's ankle-to-toe-tip distance, m: de Leva's foot (heel to toe tip, 0.2581 m)
+#: less the preset's heel 5 cm behind the ankle, with the ankle 8 cm up (est.). A measured
+#: foot's ankle-to-toe-tip over it scales the preset's foot points.
+REFERENCE_ANKLE_TO_TOE_TIP = math.hypot(0.2581 - 0.05, 0.08)
+
+
+def for_measured(model, body, body_mass: float | None = None, height: float | None = None):
+    """``model`` (a preset) made for a subject measured for Yeadon's inertia model (``body``:
+    a `torquesim.model.yeadon_body.MeasuredBody`): each segment's mass, length, centre of
+    mass and sagittal inertia about its proximal joint in the model are the measured parts'
+    (times the number of sides the preset lumps, e.g. both legs); the foot's points scale
+    with its ankle-to-toe-tip length; head-arms-trunk takes the body mass left over, its
+    centre of mass and inertia measured, its drawn length with the height; external loads
+    keep their mass. Strengths as `for_subject`'s (body mass × height), the body mass and
+    height being given or the measured body's."""
+    subject = Subject(body.mass if body_mass is None else body_mass,
+                      body.height if height is None else height)
+    _refuse_unknown(model)
+    parts = body.parts
+    length_ratio: dict[str, float] = {}
+    segments = []
+    others = 0.0
+    for seg in model.segments:
+        if seg.name == REMAINDER:
+            segments.append(seg)
+            continue
+        names = PRESET_PARTS[seg.name]
+        ref_mass, ref_length, ref_com, _ = segment_values(names, REFERENCE)
+        sides = max(1, round(seg.mass / ref_mass))
+        if names == ("foot",):
+            foot = parts["foot"]
+            length = seg.length * foot.length / REFERENCE_ANKLE_TO_TOE_TIP
+            mass, com, inertia = foot.mass, foot.com, foot.inertia_about(foot.com)
+        else:
+            chain = [parts[n] for n in names]
+            length = sum(p.length for p in chain)
+            starts = [sum(p.length for p in chain[:i]) for i in range(len(chain))]
+            mass = sum(p.mass for p in chain)
+            com = sum(p.mass * (s + p.com) for p, s in zip(chain, starts, strict=True)) / mass
+            # a preset segment may run the other way (the jump's shank from the ankle)
+            if abs(seg.com_distance - (ref_length - ref_com)) < abs(seg.com_distance - ref_com):
+                starts = [length - s - p.length for p, s in zip(chain, starts, strict=True)]
+                chain = [Part(p.mass, p.length, p.length - p.com, p.offset, p.inertia)
+                         for p in chain]
+                com = length - com
+            inertia = sum(p.inertia_about(s + p.com) for p, s in zip(chain, starts,
+                                                                        strict=True))
+        length_ratio[seg.name] = length / seg.length
+        loads = tuple(_measured_load(load, parts, length_ratio[seg.name], sides)
+                      for load in seg.loads)
+        others += sides * mass + sum(ld.mass for ld in loads if ld.name in PRESET_PARTS)
+        segments.append(replace(seg, mass=sides * mass, length=length, com_distance=com,
+                                inertia_about_joint=sides * inertia, loads=loads))
+    hat = parts["head_arms_trunk"]
+    height_ratio = subject.height / REFERENCE.height
+    out = []
+    for seg in segments:
+        if seg.name == REMAINDER:
+            mass = subject.body_mass - others
+            length_ratio[seg.name] = height_ratio
+            seg = replace(seg, mass=mass, com_distance=hat.com,
+                          length=seg.length * height_ratio,
+                          inertia_about_joint=hat.inertia_about(hat.com) * mass / hat.mass)
+        out.append(seg)
+    note = (f"Made from Yeadon measurements, {body.source}, for a body of "
+            f"{subject.body_mass:.4g} kg and {subject.height:.4g} m: each segment's mass, "
+            "length, centre of mass and sagittal inertia from Yeadon's (1990) inertia model "
+            "(the yeadon package), both sides where the preset lumps them; foot points scaled "
+            f"by its ankle-to-toe-tip length over {REFERENCE_ANKLE_TO_TOE_TIP:.3f} m; "
+            "head-arms-trunk the body mass left over, its centre of mass and inertia measured; "
+            "external loads unchanged; ")
+    joints, lean = _balanced(model, out)
+    if lean:
+        note += (f"the trunk leans {math.degrees(lean):+.1f} deg from the preset's squat so "
+                 "that the centre of mass stays over the same point of the feet; ")
+    return _finish(model, out, length_ratio, subject, note, joints)
+
+
+def _com_x(model, segments, joints) -> float:
+    """The horizontal centre of mass of ``segments`` posed at ``joints``' initial angles, from
+    the base, m (the chain's geometry as `ChainModel.kinematics`, for segments not yet in a
+    model)."""
+    phi = [0.0] * len(segments)
+    where = [0.0] * len(segments)
+    moment = mass = 0.0
+    for k, p in enumerate(model.parents):
+        phi[k] = (model.base_angle if p < 0 else phi[p]) + joints[k].initial_angle
+        if p >= 0:
+            seg = segments[k]
+            along = segments[p].length if seg.parent_distance is None else seg.parent_distance
+            where[k] = where[p] + along * math.sin(phi[p])
+        moment += segments[k].total_mass * where[k] + segments[k].first_moment * math.sin(phi[k])
+        mass += segments[k].total_mass
+    return moment / mass
+
+
+def _balanced(model, segments):
+    """(``model``'s joints with head-arms-trunk's joint turned so the measured body's centre
+    of mass is as far forward of the base as the preset's, the turn in rad) on a free base; a
+    fixed base unchanged. A standing body's balance depends on it: a lighter or shorter trunk
+    shifts the centre of mass back off the forefoot the preset's units are set to hold."""
+    if model.base != "free":
+        return model.joints, 0.0
+    from scipy.optimize import brentq
+
+    k = next(i for i, seg in enumerate(model.segments) if seg.name == REMAINDER)
+    joint = model.joints[k]
+    goal = _com_x(model, model.segments, model.joints)
+
+    def offset(turn: float) -> float:
+        joints = list(model.joints)
+        joints[k] = replace(joint, initial_angle=joint.initial_angle + turn)
+        return _com_x(model, segments, joints) - goal
+
+    low, high = joint.endstop_lower_angle - joint.initial_angle, \
+        joint.endstop_upper_angle - joint.initial_angle
+    low, high = max(low, -0.6), min(high, 0.6)
+    if offset(low) * offset(high) > 0:
+        raise ModelError("--measurements", "no trunk lean within 0.6 rad of the preset's puts "
+                         "the measured body's centre of mass over the preset's; allowed: a body "
+                         "whose proportions the preset's posture can hold")
+    turn = brentq(offset, low, high, xtol=1e-12)
+    joints = list(model.joints)
+    joints[k] = replace(joint, initial_angle=joint.initial_angle + turn)
+    return tuple(joints), turn
+
+
+def _measured_load(load, parts, length_ratio: float, sides: int):
+    """A body-part load (the knee model's foot) as the measured part; an external one only
+    moved with its segment's length."""
+    if load.name not in PRESET_PARTS:
+        return replace(load, distance=load.distance * length_ratio)
+    part = parts[PRESET_PARTS[load.name][0]]
+    return replace(load, mass=sides * part.mass, distance=load.distance * length_ratio,
+                   inertia=sides * part.inertia)
 
 
 def _scaled_load(load, subject: Subject, length_ratio: float):
