@@ -701,8 +701,12 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
               "with a [targets.map] table of JOINT = \"EXPRESSION\"; --column overrides.")
 @click.option("--forces", "forces_path", type=click.Path(dir_okay=False), default=None,
               help="A force-plate file (OpenSim external loads .mot/.sto or CSV, "
-              "ground_force_vx/vy per plate): plates summed, low-passed, resampled onto the "
-              "target's times and fitted as grf_x, grf_y (--grf-components).")
+              "ground_force_vx/vy per plate; or a .c3d file's force platforms, --lab-axes): "
+              "plates summed, low-passed, resampled onto the target's times and fitted as "
+              "grf_x, grf_y (--grf-components).")
+@click.option("--lab-axes", default="x,z", show_default=True,
+              help="A .c3d --forces file's lab frame: the axis pointing forwards (the jumper "
+              "facing it) and the one pointing up, e.g. x,z or -y,z.")
 @click.option("--grf-cutoff", type=float, default=50.0, show_default=True,
               help="Cut-off of the zero-lag Butterworth low-pass on --forces, Hz.")
 @click.option("--grf-components", type=click.Choice(["y", "xy"]), default="xy",
@@ -760,8 +764,8 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
 @click.option("--overwrite", is_flag=True,
               help="Start a new fit in an --out directory that holds an earlier one.")
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
-def fit(target_spec, columns, map_spec, forces_path, grf_cutoff, grf_components, rezero, units,
-        model_path,
+def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_components,
+        rezero, units, model_path,
         method, step, search, starts, iterations,
         seed, generations, population, polish, max_time, rest_level, bounds, frozen,
         joint_weights, weight_velocity, weight_end, weight_effort, weight_grf, weight_com,
@@ -818,7 +822,7 @@ def fit(target_spec, columns, map_spec, forces_path, grf_cutoff, grf_components,
             raise ModelError("--forces", "with a built-in motion, which has its own forces; "
                              "allowed: --forces with a --target file")
         target, lines = with_forces(base, target, forces_path, grf_cutoff, rezero,
-                                    grf_components)
+                                    grf_components, lab_axes)
         for line in lines:
             click.echo(line, err=line.startswith("warning"))
     if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt"):

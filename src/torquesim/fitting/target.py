@@ -369,10 +369,10 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
 
 
 def with_forces(chain, target: Target, path, cutoff: float, rezero: bool = False,
-                components: str = "xy") -> tuple[Target, list[str]]:
+                components: str = "xy", axes: str = "x,z") -> tuple[Target, list[str]]:
     """``target`` with ``grf_y`` (``components="y"``) or ``grf_x`` and ``grf_y`` ("xy") from a
-    force-plate file (plates summed,
-    zero-lag low-passed at ``cutoff`` Hz, interpolated at the target's times; see
+    force-plate file (plates summed, zero-lag low-passed at ``cutoff`` Hz, interpolated at the
+    target's times; a C3D file's platforms in the lab frame ``axes``; see
     `torquesim.io.force_plates`), and the lines to tell the user: the plates read, the filter,
     the body mass of the quiet standing against the model's, a re-zeroing."""
     from dataclasses import replace
@@ -387,9 +387,10 @@ def with_forces(chain, target: Target, path, cutoff: float, rezero: bool = False
     if chain.base != "free" or not chain.contacts:
         raise ModelError("--forces", f"{chain.name!r} does not stand on the ground; allowed: "
                          "a model with a free base and ground contacts")
-    totals = read_plates(path)
+    totals = read_plates(path, axes=axes)
     lines = [f"forces        {totals.name}: {len(totals.plates)} plate(s) summed, "
-             f"{totals.rate:.4g} Hz, zero-lag Butterworth low-pass at {cutoff:g} Hz"]
+             f"{totals.rate:.4g} Hz, zero-lag Butterworth low-pass at {cutoff:g} Hz"
+             + (f"; {totals.note}" if totals.note else "")]
     weight = chain.weight
     mass = sum(seg.total_mass for seg in chain.segments)
     try:

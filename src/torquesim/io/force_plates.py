@@ -3,7 +3,9 @@
 A file (OpenSim external-loads ``.mot``/``.sto``, or CSV) holds one or more plates, each as
 columns ``<prefix>ground_force_vx|vy|vz`` (N) and optionally ``<prefix>ground_force_px|py|pz``
 (centre of pressure, m): ``ground_force_vy``, ``1_ground_force_vy``, ``r_ground_force_vy`` …
-(OpenSim's names; y up, x forwards). `plate_totals` sums the plates per component and combines
+(OpenSim's names; y up, x forwards). A C3D file's force platforms are read through ``ezc3d``
+(`read_c3d_plates`: its forces and centres of pressure in the lab's frame, whose forward and up
+axes the user states). `plate_totals` sums the plates per component and combines
 their centres of pressure (weighted by each plate's vertical force); `low_pass` filters with a
 zero-lag Butterworth filter; `grf_channels` puts it all onto a target's times.
 """
@@ -39,7 +41,7 @@ GRAVITY = 9.81
 class PlateTotals:
     """The plates of a force file summed: time (s), force components (N), centre of pressure
     along x (m, NaN where the vertical force is below 20 N), sampling rate (Hz), plates'
-    prefixes."""
+    prefixes, and what was done to read it (``note``, "" if nothing)."""
 
     name: str
     time: np.ndarray
@@ -48,14 +50,17 @@ class PlateTotals:
     cop_x: np.ndarray
     rate: float
     plates: tuple[str, ...]
+    note: str = ""
 
 
-def read_plates(path, field: str = "--forces") -> PlateTotals:
+def read_plates(path, field: str = "--forces", axes: str = "x,z") -> PlateTotals:
     """Read a force file and sum its plates (see the module's docstring). Errors name
     ``field``, the file, and the row and column at fault: no force columns, a cell that is not
     a finite number, time that does not increase (a duplicated time too), a gap in the
-    sampling."""
+    sampling. A ``.c3d`` file goes to `read_c3d_plates` with ``axes``."""
     path = Path(path)
+    if path.suffix.lower() == ".c3d":
+        return read_c3d_plates(path, axes, field)
     plates: dict[str, dict[str, str]] = {}
 
     def pick(names: list[str]) -> list[str]:
@@ -86,6 +91,92 @@ def read_plates(path, field: str = "--forces") -> PlateTotals:
     with np.errstate(invalid="ignore", divide="ignore"):
         cop = np.where(fy > 20.0, moment / np.where(fy > 20.0, fy, 1.0), np.nan)
     return PlateTotals(path.name, time, fx, fy, cop, 1.0 / typical, tuple(plates))
+
+
+#: Length units a C3D file may give its positions in, in metres.
+_LENGTH_UNITS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+
+
+def lab_axes(text: str, field: str = "--lab-axes") -> tuple[tuple[int, float], tuple[int, float]]:
+    """The lab frame's forward and up axes as given, e.g. ``x,z`` or ``-y,z``: ((axis index,
+    sign) forward, (axis index, sign) up)."""
+    parts = [p.strip().lower() for p in str(text).split(",")]
+    out = []
+    for part in parts:
+        sign = -1.0 if part.startswith("-") else 1.0
+        axis = part.lstrip("+-")
+        if axis not in ("x", "y", "z"):
+            out = []
+            break
+        out.append(("xyz".index(axis), sign))
+    if len(parts) != 2 or len(out) != 2 or out[0][0] == out[1][0]:
+        raise ModelError(field, f"{text!r}; allowed: the lab's forward and up axes, two of "
+                         "x, y, z with an optional minus, e.g. x,z or -y,z")
+    return out[0], out[1]
+
+
+def read_c3d_plates(path, axes: str = "x,z", field: str = "--forces") -> PlateTotals:
+    """The force platforms of a C3D file (through ``ezc3d``, which applies each platform's
+    calibration, corners and origin), summed in the lab's frame: ``axes`` says which lab axis
+    points forwards and which up (`lab_axes`). Times from the first frame at the analog rate;
+    centres of pressure in the file's POINT units. A file whose vertical force is mostly
+    negative gives the force on the plates, not on the body: it is turned (said in
+    ``plates``). No platform, no ``ezc3d``, or an unreadable file: one line."""
+    path = Path(path)
+    (forward, f_sign), (up, u_sign) = lab_axes(axes)
+    try:
+        import ezc3d
+    except ImportError:
+        raise ModelError(field, f"{path.name}: reading C3D needs the ezc3d package; allowed: "
+                         "pip install ezc3d (or torquesim[c3d]), or an OpenSim .mot") from None
+    if not path.is_file():
+        raise ModelError(field, f"{path}: no such file")
+    try:
+        c3d = ezc3d.c3d(str(path), extract_forceplat_data=True)
+    except Exception as exc:  # noqa: BLE001 (ezc3d raises RuntimeError/ValueError alike)
+        raise ModelError(field, f"{path.name}: not a readable C3D file with force platforms "
+                         f"({str(exc).strip().splitlines()[0] if str(exc).strip() else exc})"
+                         ) from None
+    platforms = list(c3d["data"]["platform"])
+    if not platforms:
+        raise ModelError(field, f"{path.name}: no force platform (FORCE_PLATFORM:USED is 0); "
+                         "allowed: a C3D file with force platforms")
+    header = c3d["header"]
+    rate = float(header["analogs"]["frame_rate"])
+    start = float(header["points"]["first_frame"]) / float(header["points"]["frame_rate"])
+    frames = platforms[0]["force"].shape[1]
+    time = start + np.arange(frames) / rate
+    fx = np.zeros(frames)
+    fy = np.zeros(frames)
+    moment = np.zeros(frames)
+    for k, plate in enumerate(platforms):
+        if plate["force"].shape[1] != frames:
+            raise ModelError(field, f"{path.name}: platform {k + 1} has "
+                             f"{plate['force'].shape[1]} frames, platform 1 {frames}")
+        scale = _LENGTH_UNITS.get(str(plate["unit_position"]).strip().lower())
+        if scale is None:
+            raise ModelError(field, f"{path.name}: platform {k + 1}'s positions are in "
+                             f"{plate['unit_position']!r}; allowed: mm, cm, m")
+        force = np.asarray(plate["force"], dtype=float)
+        if str(plate["unit_force"]).strip().lower() == "kn":
+            force = force * 1e3
+        vertical = u_sign * force[up]
+        fx += f_sign * force[forward]
+        fy += vertical
+        moment += vertical * f_sign * scale * np.asarray(plate["center_of_pressure"][forward],
+                                                         dtype=float)
+    bad = np.flatnonzero(~np.isfinite(fx + fy))
+    if bad.size:
+        raise ModelError(field, f"{path.name}: frame {int(bad[0]) + 1} holds a force that is "
+                         "not a finite number")
+    names = tuple(f"platform {k + 1}" for k in range(len(platforms)))
+    note = f"lab axes {axes} (forwards, up)"
+    if np.median(fy[np.abs(fy) > 0.05 * np.abs(fy).max()]) < 0:
+        fx, fy, moment = -fx, -fy, -moment  # the plates' reading: the force on them
+        note += "; the file gives the force on the plates, turned into the force on the body"
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cop = np.where(fy > 20.0, moment / np.where(fy > 20.0, fy, 1.0), np.nan)
+    return PlateTotals(path.name, time, fx, fy, cop, rate, names, note)
 
 
 def low_pass(values: np.ndarray, rate: float, cutoff: float) -> np.ndarray:
