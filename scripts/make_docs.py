@@ -30,6 +30,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from docblocks import (  # noqa: E402  (scripts/)
+    MOTION_PRESETS,
     ROOT,
     contact_blocks,
     current_block,
@@ -201,6 +202,19 @@ def check_optimise_spread() -> list[str]:
     return problems
 
 
+def conventions_figures() -> None:
+    """docs/figures/conventions_<preset>.png: each preset's angle conventions, as
+    ``torquesim model NAME --conventions`` draws them."""
+    import torquesim as ts
+    from torquesim.cli import conventions_figure
+    from torquesim.plots import save_figure
+
+    for name in MOTION_PRESETS:
+        path = ROOT / "docs" / "figures" / f"conventions_{name.replace('-', '_')}.png"
+        save_figure(conventions_figure(ts.load_model(f"builtin:{name}")), path)
+        print(f"wrote {path.relative_to(ROOT)}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
@@ -243,6 +257,8 @@ def main() -> None:
         problems = check_optimise_spread()
         if problems:
             sys.exit("\n".join(problems))
+    if args.presets:
+        conventions_figures()
     if args.check or args.presets:
         return
     from torquesim.cli import main as torquesim

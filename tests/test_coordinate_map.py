@@ -136,3 +136,33 @@ def test_bad_maps_are_one_line_errors(jump, tmp_path, capsys):
     assert main(["fit", "--model", "builtin:arm-raise", "--target", str(path), "--map",
                  "gait2392", "--quiet", "--out", str(tmp_path / "fit")]) == 2
     assert "the gait2392 map is for the squat jump's joints" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["squat-jump", "arm-raise", "knee-extension"])
+def test_the_conventions_figure_draws_each_angle_from_its_zero_line(name, tmp_path):
+    """Each joint's arc spans its drawn angle (|q| in degrees) and starts or ends on the zero
+    line: the parent's axis carried on (for the root, the base direction); `--conventions`
+    writes it, with the OpenSim maps beside the jump."""
+    from matplotlib.patches import Arc
+
+    from torquesim.cli import conventions_figure
+
+    model = ts.load_model(f"builtin:{name}")
+    fig = conventions_figure(model)
+    arcs = [p for p in fig.axes[0].patches if isinstance(p, Arc)]
+    assert len(arcs) == len(model.joints)
+    state = model.initial_state().state[:model.n_coordinates]
+    free = model.base == "free"
+    angles = model.kinematics(state)["angles"]
+    for k, (arc, joint) in enumerate(zip(arcs, model.joints, strict=True)):
+        q = float(state[model.n_base + k])
+        if not free and abs(q) < 0.4:
+            q = 0.7 if joint.endstop_lower_angle <= 0.7 <= joint.endstop_upper_angle else -0.7
+        assert arc.theta2 - arc.theta1 == pytest.approx(abs(math.degrees(q)), abs=1e-9)
+        if free:
+            parent = model.parents[k]
+            zero = math.degrees(model.base_angle if parent < 0 else angles[parent]) - 90.0
+            assert min(abs(arc.theta1 - zero), abs(arc.theta2 - zero)) < 1e-9
+    assert (len(fig.axes) == 2) == free  # the maps beside the jump
+    assert main(["model", name, "--conventions", str(tmp_path / "c.png")]) == 0
+    assert (tmp_path / "c.png").stat().st_size > 10_000

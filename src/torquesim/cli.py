@@ -372,6 +372,18 @@ def _announce_size(model, method, step, duration, out_path) -> None:
                    "makes it smaller", err=True)
 
 
+def conventions_figure(chain):
+    """`plots.plot_conventions` of ``chain``, with the default OpenSim maps when its joints
+    are the squat jump's."""
+    from .fitting.coordinate_map import DEFAULT_MAPS, default_map
+    from .plots import plot_conventions
+
+    maps = None
+    if [j.name for j in chain.joints][:4] == ["foot_ground", "ankle", "knee", "hip"]:
+        maps = {name: default_map(name, chain) for name in DEFAULT_MAPS}
+    return plot_conventions(chain, maps)
+
+
 @cli.command(short_help="Write a model as an editable TOML file.")
 @click.argument("name", default="elbow-curl")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
@@ -379,6 +391,10 @@ def _announce_size(model, method, step, duration, out_path) -> None:
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Draw the model (segments, joints, loads, which units act where) and each "
                    "unit's property curves (.png, .pdf, .svg).")
+@click.option("--conventions", "conventions_path", type=click.Path(dir_okay=False),
+              help="Draw how the model's angles are measured (zero line, positive way, units "
+                   "on each joint; for the squat jump's joints also the OpenSim maps) (.png, "
+                   ".pdf, .svg).")
 @click.option("--body-mass", type=float, default=None,
               help="Make the built-in model for a subject of this body mass (kg, 20-250; "
               "with --height): segments from de Leva (1996), strengths scaled.")
@@ -394,19 +410,21 @@ def _announce_size(model, method, step, duration, out_path) -> None:
 @click.option("--densities", type=click.Choice(["Dempster", "Chandler", "Clauser"]),
               default="Dempster", show_default=True,
               help="Segment densities of Yeadon's model (with --measurements).")
-def model(name, out_path, plot_path, body_mass, height, sex, measurements, densities):
+def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, measurements,
+          densities):
     """Write a model as an editable TOML file: a preset (NAME is one of the presets listed by
     `torquesim simulate --help`; builtin: prefix optional), made for a subject with
     --body-mass and --height (de Leva) or --measurements (Yeadon), or a checked, rewritten
-    copy of a model file; or draw it with --plot."""
+    copy of a model file; or draw it with --plot, its angle conventions with --conventions."""
     from .io.model_file import load_model, save_model
     from .model.presets import PREFIX, PRESETS
 
-    if out_path is None and plot_path is None:
-        raise ModelError("--out", "nothing to write; allowed: --out FILE.toml and/or --plot "
-                         "FILE.png")
+    if out_path is None and plot_path is None and conventions_path is None:
+        raise ModelError("--out", "nothing to write; allowed: --out FILE.toml, --plot FILE.png "
+                         "and/or --conventions FILE.png")
     _check_output(out_path, (".toml",), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
+    _check_output(conventions_path, PLOT_SUFFIXES, "--conventions")
     if name not in PRESETS and not name.startswith(PREFIX) and not Path(name).exists():
         raise ModelError("NAME", f"{name!r} is neither a built-in model nor a file; allowed: "
                          f"{', '.join(PRESETS)} or a model file")
@@ -460,6 +478,11 @@ def model(name, out_path, plot_path, body_mass, height, sex, measurements, densi
 
         save_figure(plot_model(chain), plot_path, "--plot")
         click.echo(f"wrote {plot_path}")
+    if conventions_path:
+        from .plots import save_figure
+
+        save_figure(conventions_figure(chain), conventions_path, "--conventions")
+        click.echo(f"wrote {conventions_path}")
 
 
 class Progress:

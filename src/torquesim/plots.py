@@ -187,6 +187,102 @@ def plot_model(model):
     return fig
 
 
+def plot_conventions(model, maps: dict | None = None):
+    """How the model's angles are measured, drawn on it at its initial pose: for each joint a
+    dashed zero line (the parent segment's axis carried on through the joint; for the first
+    joint the base's hanging-down direction), an arc from it to the segment with the arrow
+    pointing the positive (counterclockwise as drawn) way, and the coordinate's name and
+    value in degrees; the units acting there, + pulling towards positive. On a fixed base a
+    joint that starts within 23° of its zero is drawn at ±40° (inside its end stops) so that
+    its arc can be seen, and the title says so. ``maps``
+    ({map name: {joint: expression}}, e.g. the default OpenSim maps) are listed beside it."""
+    from matplotlib.patches import Arc, FancyArrowPatch
+
+    fig = _figure(figsize=(11.0 if maps else 7.0, 6.4))
+    grid = fig.add_gridspec(1, 2 if maps else 1, width_ratios=(1.25, 1) if maps else (1,))
+    ax = fig.add_subplot(grid[0, 0])
+    state = model.initial_state().state[:model.n_coordinates].copy()
+    shown = False
+    if model.base != "free":
+        for k, joint in enumerate(model.joints):
+            if abs(state[k]) < 0.4:
+                inside = joint.endstop_lower_angle <= 0.7 <= joint.endstop_upper_angle
+                state[k] = 0.7 if inside else -0.7
+                shown = True
+    pose = model.kinematics(state)
+    phi = pose["angles"]
+    lines = segment_lines(model, state)[0]
+    span = float(np.ptp(lines.reshape(-1, 2), axis=0).max()) or 1.0
+    radius = 0.11 * span
+    colours = ("tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown")
+    for k, (start, end) in enumerate(lines):
+        ax.plot(*np.transpose([start, end]), color="k", lw=3, solid_capstyle="round")
+    if model.contacts:
+        ax.axhline(0.0, color="tab:brown", lw=2)
+    for k, joint in enumerate(model.joints):
+        colour = colours[k % len(colours)]
+        parent = model.parents[k]
+        zero = model.base_angle if parent < 0 else phi[parent]
+        centre = pose["joints"][k]
+        reach = 1.6 * radius
+        ax.plot(*np.transpose([centre, centre + reach * np.array([np.sin(zero),
+                                                                     -np.cos(zero)])]),
+                ls="--", color=colour, lw=1)
+        q = float(state[model.n_base + k])
+        # angles on the page: 0 along +x; a direction (sin φ, −cos φ) is at φ − 90°
+        a0, a1 = np.degrees(zero) - 90.0, np.degrees(zero + q) - 90.0
+        low, high = min(a0, a1), max(a0, a1)
+        r = radius * (1.0 + 0.25 * (k % 2))
+        ax.add_patch(Arc(centre, 2 * r, 2 * r, theta1=low, theta2=high, color=colour, lw=1.5))
+        tip = np.radians(a1)
+        before = np.radians(a1 - np.sign(q) * 8.0)
+        ax.add_patch(FancyArrowPatch(centre + r * np.array([np.cos(before), np.sin(before)]),
+                                     centre + r * np.array([np.cos(tip), np.sin(tip)]),
+                                     arrowstyle="-|>", mutation_scale=12, color=colour))
+        # the label on the far side of the zero line, away from the segment
+        middle = np.radians(a0 - (np.sign(q) or 1.0) * 40.0)
+        units = [u for u in model.units if u.joint == joint.name]
+        label = f"{joint.coordinate} {np.degrees(q):.0f}°" + "".join(
+            f"\n{'+' if u.direction == 1 else '−'} {u.name}" for u in units)
+        c, s_ = np.cos(middle), np.sin(middle)
+        side_on = abs(c) >= 0.5  # label beside the arc, else above or below it
+        ax.annotate(label, centre + 1.2 * r * np.array([c, s_]),
+                    xytext=(np.sign(c) * 10, 0) if side_on else (0, np.sign(s_) * 8),
+                    textcoords="offset points",
+                    ha=("left" if c >= 0 else "right") if side_on else "center",
+                    va="center" if side_on else ("bottom" if s_ > 0 else "top"),
+                    fontsize="small", color=colour, zorder=5,
+                    bbox={"fc": "white", "ec": "none", "alpha": 0.85, "pad": 1.0})
+    for point, spot in zip(model.points, pose["points"], strict=True):
+        ax.plot(*spot, marker="^", ms=7, color="tab:orange")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.margins(0.45, 0.22)
+    ax.set_title(textwrap.fill(f"{model.name}"
+                               + (" (drawn at illustrative angles)" if shown else "")
+                               + ": each angle from the dashed line to its segment, "
+                               "counterclockwise positive as drawn; units + pull that way",
+                               60), fontsize="medium")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m), up")
+    if maps:
+        side = fig.add_subplot(grid[0, 1])
+        side.axis("off")
+        text = []
+        import re
+
+        for name, table in maps.items():
+            text.append(f"--map {name} (degrees):")
+            for joint, expression in table.items():
+                shown = re.sub(r"\d+\.\d{3,}", lambda m: f"{float(m.group()):.2f}", expression)
+                text += textwrap.wrap(f"{joint} = {shown}", 46, initial_indent="  ",
+                                      subsequent_indent="      ")
+            text.append("")
+        side.text(0.0, 1.0, "\n".join(text), va="top", ha="left", family="monospace",
+                  fontsize="small")
+        side.set_title("From an OpenSim model's coordinates", fontsize="medium")
+    return fig
+
+
 def _drawn_length(seg) -> float:
     """A segment is drawn to its next joint, or when it has none over its extent."""
     return seg.length if seg.length > 0 else seg.extent

@@ -7,7 +7,7 @@ written as an expression in degrees, e.g. ``"-knee_angle_r"``, ``"118.1 - ankle_
 A map comes from ``--column JOINT=EXPRESSION``, from a TOML file's ``[targets.map]`` table, or
 by name for the common OpenSim full-body models (`DEFAULT_MAPS`).
 
-The default maps (docs/fitting.md draws the conventions) are for the squat jump's joints
+The default maps (docs/opensim.md draws the conventions) are for the squat jump's joints
 (root ``foot_ground``, then ``ankle``, ``knee``, ``hip``; each the counterclockwise angle of a
 segment from its parent's, facing +x) and the right leg of an OpenSim model (rotations about
 +z, counterclockwise facing +x): the absolute angle of the shank (ankle → knee) is
