@@ -123,7 +123,8 @@ def contact_blocks() -> dict[str, str]:
         slid = [f"{p} {mm:.2f} mm" for p, mm in creep.items()]
         moved = f"the {slid[0].replace(' ', ' slides ', 1)}" + "".join(f", the {x}"
                                                                       for x in slid[1:])
-        parts.append(f"at v_s = {speed:g} m/s{' (the preset)' if speed == preset_speed else ''} "
+        which = " (the preset)" if speed == preset_speed else ""
+        parts.append(f"at v_s = {speed:g} m/s{which} "
                      f"{moved} while loaded, and the contacts' smallest time constant is {tau:.3g} ms")
     return {"contacts-squat-jump": "On the squat jump: " + "; ".join(parts) + ".\n"}
 

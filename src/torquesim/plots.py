@@ -215,7 +215,7 @@ def plot_conventions(model, maps: dict | None = None):
     span = float(np.ptp(lines.reshape(-1, 2), axis=0).max()) or 1.0
     radius = 0.11 * span
     colours = ("tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown")
-    for k, (start, end) in enumerate(lines):
+    for start, end in lines:
         ax.plot(*np.transpose([start, end]), color="k", lw=3, solid_capstyle="round")
     if model.contacts:
         ax.axhline(0.0, color="tab:brown", lw=2)
@@ -253,7 +253,7 @@ def plot_conventions(model, maps: dict | None = None):
                     va="center" if side_on else ("bottom" if s_ > 0 else "top"),
                     fontsize="small", color=colour, zorder=5,
                     bbox={"fc": "white", "ec": "none", "alpha": 0.85, "pad": 1.0})
-    for point, spot in zip(model.points, pose["points"], strict=True):
+    for spot in pose["points"]:
         ax.plot(*spot, marker="^", ms=7, color="tab:orange")
     ax.set_aspect("equal", adjustable="datalim")
     ax.margins(0.45, 0.22)
