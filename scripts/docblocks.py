@@ -124,8 +124,8 @@ def contact_blocks() -> dict[str, str]:
         moved = f"the {slid[0].replace(' ', ' slides ', 1)}" + "".join(f", the {x}"
                                                                       for x in slid[1:])
         which = " (the preset)" if speed == preset_speed else ""
-        parts.append(f"at v_s = {speed:g} m/s{which} "
-                     f"{moved} while loaded, and the contacts' smallest time constant is {tau:.3g} ms")
+        parts.append(f"at v_s = {speed:g} m/s{which} {moved} while loaded, and the "
+                     f"contacts' smallest time constant is {tau:.3g} ms")
     return {"contacts-squat-jump": "On the squat jump: " + "; ".join(parts) + ".\n"}
 
 
