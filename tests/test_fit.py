@@ -637,3 +637,73 @@ def test_a_fit_that_stops_on_its_cap_says_so(synthetic_target, tmp_path):
                                             SearchSettings(starts=1, iterations=400),
                                             tmp_path / "more")
     assert not generous.capped and not any("stopped on" in w for w in summary["warnings"])
+
+
+def test_a_recording_that_begins_in_motion_starts_the_fit_moving(tmp_path):
+    """A curl cut from 0.6 s (the elbow flexing at tens of °/s): the fit's model starts at the
+    target's speed there (its spline's derivative, within 1 % of the run's), the written
+    model keeps it, and the reference re-simulation from it follows the first 50 ms better
+    than a start at rest. A target that starts still starts at rest."""
+    from torquesim.fitting import FitProblem, Target
+
+    model = ts.load_model("builtin:elbow-curl")
+    run = ts.simulate(model, "reference", output_step=0.01)
+    cut = (run.time >= 0.6 - 1e-9) & (run.time <= 1.6 + 1e-9)
+    target = Target(run.time[cut], run.q[cut].T, ("elbow",), "cut curl")
+    true_speed = float(run.qd[cut][0, 0])
+    assert abs(math.degrees(true_speed)) > 20.0
+    problem = FitProblem(target, base_model=model)
+    assert problem.start_speeds["elbow"] == pytest.approx(true_speed, rel=0.01)
+    y0 = problem.model.initial_state().state
+    assert y0[problem.model.layout.speeds][0] == pytest.approx(true_speed, rel=0.01)
+    speed = problem.model.joints[0].initial_speed
+    assert speed == pytest.approx(true_speed, rel=0.01)
+    from dataclasses import replace
+
+    from torquesim.io.model_file import load_model, model_to_toml, save_model
+
+    assert "initial_speed" in model_to_toml(problem.model)
+    save_model(problem.model, tmp_path / "m.toml")
+    assert load_model(str(tmp_path / "m.toml")).joints[0].initial_speed == speed
+    early = target.elapsed <= 0.05
+    moving = ts.simulate(problem.model, "reference", output_step=0.01)
+    still = ts.simulate(problem.model.replace(joints=(replace(problem.model.joints[0],
+                                                              initial_speed=0.0),)),
+                        "reference", output_step=0.01)
+    goal = target.angles[0][early]
+    assert np.max(np.abs(moving.q[: goal.size, 0] - goal)) < 0.5 * np.max(
+        np.abs(still.q[: goal.size, 0] - goal))
+    rest = Target(run.time[run.time <= 1.0], run.q[run.time <= 1.0].T, ("elbow",), "start")
+    assert np.all(rest.start_speeds() == 0.0)
+
+
+def test_a_free_body_started_moving_keeps_its_loaded_contacts_still():
+    """The squat jump with its knee and hip moving at the start: the base moves so that the
+    loaded toe and heel start at (least-squares) zero velocity; at rest nothing moves."""
+    jump = ts.load_model("builtin:squat-jump")
+    from dataclasses import replace
+
+    joints = list(jump.joints)
+    joints[2] = replace(joints[2], initial_speed=-1.0)
+    joints[3] = replace(joints[3], initial_speed=1.0)
+    moving = jump.replace(joints=tuple(joints))
+    state = moving.initial_state().state
+    layout = moving.layout
+    where = moving.kinematics(state[layout.coordinates], state[layout.coordinate_speeds])
+    velocities = where["point_velocities"][:2]  # toe and heel
+    assert np.all(np.abs(velocities) < 1e-12)  # the foot does not turn: both held exactly
+    assert state[layout.speeds][2:] == pytest.approx([-1.0, 1.0])
+    assert not np.any(jump.initial_state().state[layout.coordinate_speeds])
+
+
+def test_an_initial_speed_out_of_range_in_a_model_file_is_one_line(tmp_path, capsys):
+    from torquesim.io.model_file import model_to_toml
+
+    text = model_to_toml(ts.load_model("builtin:knee-extension"))
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('name = "knee"\n', 'name = "knee"\ninitial_speed = 500.0\n', 1))
+    assert main(["simulate", "--model", str(bad), "--out", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: joints[0].initial_speed: 500 is out of range; allowed "
+                          "[-100, 100] rad/s"), err
+    assert not (tmp_path / "x.csv").exists()

@@ -152,8 +152,12 @@ class FitProblem:
         first = (self.target.start_angles() if base.base == "free"
                  else self.target.angles[:, 0])
         start_angles = dict(zip(self.target.joints, first, strict=True))
+        # a recording that begins in motion starts moving (its spline's speed at t0)
+        self.start_speeds = dict(zip(self.target.joints, self.target.start_speeds().tolist(),
+                                     strict=True))
         joints = tuple(j if j.name not in start_angles else
-                       _with_angle(j, float(start_angles[j.name])) for j in base.joints)
+                       _with_start(j, float(start_angles[j.name]), self.start_speeds[j.name])
+                       for j in base.joints)
         try:
             model = base.replace(joints=joints, duration=self.target.duration)
             self.model = with_ramps(model, np.array(self.space.upper), self.initial_levels)
@@ -260,5 +264,5 @@ class FitProblem:
         return dict(zip(self.space.units, np.mean(self.activations(x), axis=1).tolist(),
                         strict=True))
 
-def _with_angle(joint, angle: float):
-    return replace(joint, initial_angle=angle)
+def _with_start(joint, angle: float, speed: float):
+    return replace(joint, initial_angle=angle, initial_speed=speed)

@@ -114,6 +114,17 @@ class Target:
             start[row] = float(self.smoothed(int(row))(0.0))
         return start
 
+    def start_speeds(self) -> np.ndarray:
+        """Each joint's angular velocity at the first sample, rad/s: the derivative at t0 of
+        the smoothing spline of `smoothed`; all zero when every joint moves slower than
+        `STILL` there (a recording that starts still: the fit starts at rest, in static
+        equilibrium)."""
+        if self.time.size < 5:
+            return np.zeros(len(self.joints))
+        speeds = np.array([float(self.smoothed(row).derivative()(0.0))
+                           for row in range(len(self.joints))])
+        return speeds if np.max(np.abs(speeds)) >= STILL else np.zeros_like(speeds)
+
     def angular_velocity(self) -> np.ndarray:
         """dq/dt at the samples, (joints, samples), rad/s (second-order differences)."""
         return np.gradient(self.angles, self.time, axis=1, edge_order=2)
@@ -194,6 +205,9 @@ def _auto_column(joint, names: list[str], one_joint: bool) -> str | None:
 #: A target whose first samples show less noise than this (rad, 0.01°) is taken as
 #: noise-free (simulated) and starts from its first sample.
 NOISE_FREE = math.radians(0.01)
+#: A recording whose joints all move slower than this at its first sample starts still, rad/s
+#: (5°/s: 0.5° over the first 0.1 s, within the noise of a motion capture's angles).
+STILL = math.radians(5.0)
 #: Largest median interval between a target's samples, s: a motion recorded in ms instead of
 #: s shows its samples 1 to 10 "s" apart.
 MAX_SAMPLE_INTERVAL = 0.5

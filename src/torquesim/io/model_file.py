@@ -66,6 +66,7 @@ FIELD_DOCS = {
     "inertia_about_joint": "kg m^2, about the proximal joint, loads excluded. (0, 1e4]",
     "length": "m, proximal joint to the next joint. [0, 10]",
     "initial_angle": "rad, 0 = straight/hanging, positive = flexion. [-pi, pi]",
+    "initial_speed": "rad/s, joint angular velocity at t = 0 (0 = at rest). [-100, 100]",
     "endstop_torque": "N m, passive end-stop scale k_p (0 = none). [0, 1e5]",
     "endstop_angle_scale": "rad, end-stop angular scale s_p. (0, inf)",
     "endstop_lower_angle": "rad, q_lo. [-pi, 2pi]",
@@ -102,7 +103,7 @@ POINT_KEYS = ("name", "segment", "distance", "offset")
 CONTACT_KEYS = ("point", "stiffness", "exponent", "damping", "friction", "slip_speed")
 LOAD_KEYS = ("name", "mass", "distance", "inertia")
 JOINT_KEYS = ("name", "initial_angle", "endstop_torque", "endstop_angle_scale",
-              "endstop_lower_angle", "endstop_upper_angle", "coordinate")
+              "endstop_lower_angle", "endstop_upper_angle", "coordinate", "initial_speed")
 UNIT_KEYS = ("name", "joint", "direction", "activation", "activation_dynamics",
              *TorqueGeneratorUnit.field_names())
 DYNAMICS_KEYS = ("activation_time", "deactivation_time")
@@ -411,7 +412,10 @@ def model_to_toml(model) -> str:
         lines += ["", "[[joints]]", f"name = {_value(joint.name)}",
                   _line("initial_angle", joint.initial_angle)
                   + f" (= {math.degrees(joint.initial_angle):.4g} deg)"]
-        lines += [_line(k, getattr(joint, k)) for k in JOINT_KEYS[2:]]
+        lines += [_line(k, getattr(joint, k)) for k in JOINT_KEYS[2:-1]]
+        if joint.initial_speed:
+            lines.append(_line("initial_speed", joint.initial_speed)
+                         + f" (= {math.degrees(joint.initial_speed):.4g} deg/s)")
     for unit in m.units:
         lines += ["", "[[units]]", f"name = {_value(unit.name)}",
                   f"joint = {_value(unit.joint)}",

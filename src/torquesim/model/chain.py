@@ -244,6 +244,9 @@ class Joint:
     coordinate : str
         Name of the angle's output column, as an OpenSim coordinate. Default
         ``<name>_flexion``.
+    initial_speed : float
+        q̇ at t = 0, rad/s (a start in motion, e.g. a recording that begins mid-movement).
+        Default 0 (at rest). Bounds [-100, 100].
     """
 
     name: str
@@ -253,10 +256,12 @@ class Joint:
     endstop_lower_angle: float = 0.0
     endstop_upper_angle: float = 2.618
     coordinate: str = ""
+    initial_speed: float = 0.0
 
     def __post_init__(self) -> None:
         check_name("name", self.name)
         check_range("initial_angle", self.initial_angle, -math.pi, math.pi, unit="rad")
+        check_range("initial_speed", self.initial_speed, -100.0, 100.0, unit="rad/s")
         check_range("endstop_torque", self.endstop_torque, 0.0, 1e5, unit="N·m")
         check_range("endstop_angle_scale", self.endstop_angle_scale, 0.0, low_open=True,
                     unit="rad")
@@ -815,6 +820,9 @@ class ChainModel:
     def initial_state(self) -> ChainStart:
         """Static equilibrium at rest at the joints' initial angles (docs/model.md §7).
         Solved once per (immutable) model; each call returns fresh copies of the arrays.
+        Joints with an ``initial_speed`` start moving at it from that state (the units as at
+        rest there: their SE holds the static torques); a free base then moves so that its
+        loaded contact points start still (least squares over them).
 
         At joint j the units must cancel the load τ_load = Σ_{k≥j} g·B_k·sin φ_k − T_p(q_j)
         (gravity and end stops; flexion positive).
@@ -1053,7 +1061,26 @@ class ChainModel:
             state[layout.unit_state(i)] = theta_cc[i]
             if layout.activation_state(i) is not None:
                 state[layout.activation_state(i)] = levels[i]  # at rest a = e
+        speeds = np.array([float(j.initial_speed) for j in self.joints])
+        if np.any(speeds):
+            state[layout.speeds] = speeds
+            if self.base == "free" and self.contacts:
+                state[layout.coordinate_speeds][:2] = self._contact_still(state)
         return ChainStart(state, levels, torques)
+
+    def _contact_still(self, state: np.ndarray) -> np.ndarray:
+        """The base velocity (m/s) at which the loaded contact points of ``state`` (its joint
+        speeds given) move least: minus the mean of their velocities with the base still."""
+        layout = self.layout
+        coords = state[layout.coordinates]
+        rates = state[layout.coordinate_speeds].copy()
+        rates[:2] = 0.0
+        where = self.kinematics(coords, rates)
+        which = self._contact_points()
+        loaded = where["points"][which, 1] < 0.0
+        if not loaded.any():
+            return np.zeros(2)
+        return -where["point_velocities"][which][loaded].mean(axis=0)
 
 
 def _rest_stretch(unit: Unit, q: float, level: float) -> float:
