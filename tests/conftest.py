@@ -107,3 +107,33 @@ def activation_dynamics_case(extensor_dynamics: bool = True):
         if layout.activation_state(u) is not None:
             y0[layout.activation_state(u)] = start
     return model, y0
+
+
+def fit_target(argv, monkeypatch):
+    """The target `torquesim fit ARGV` builds (channels and all), the fit stopped where its
+    search would start."""
+    import torquesim.fitting.outputs as outputs
+    from torquesim.cli import main
+
+    seen = {}
+
+    class Reached(Exception):
+        pass
+
+    def stop(problem, *_, **__):
+        seen["target"] = problem.target
+        raise Reached
+
+    monkeypatch.setattr(outputs, "fit_and_write", stop)
+    with pytest.raises(Reached):
+        main(["fit", *argv])
+    return seen["target"]
+
+
+def write_angle_csv(path, time, model, angles_deg):
+    """A CSV target: ``time`` and each joint's angle (degrees) under the joint's name."""
+    names = [j.name for j in model.joints]
+    table = np.column_stack([time, *angles_deg])
+    path.write_text("time," + ",".join(names) + "\n"
+                    + "\n".join(",".join(f"{v:.6f}" for v in row) for row in table) + "\n")
+    return path

@@ -125,31 +125,18 @@ def test_fit_takes_c3d_forces_onto_its_target(jump, tmp_path, monkeypatch, capsy
     """`fit --forces trial.c3d --lab-axes -y,z`: the target's force is the plates' sum on the
     motion's clock (both on the lab's: the C3D's first frame is at 0.3 s, and so is the
     motion's), filtered at 50 Hz."""
-    from torquesim.fitting import outputs
+    from .conftest import fit_target, write_angle_csv
 
     model, run, lab = jump
     c = run.columns()
     plates = _lab_file(tmp_path, lab.columns, lab.time)
-    angles = tmp_path / "angles.csv"
     frames = np.arange(0.0, 0.55, 1 / 120)
-    table = np.column_stack([0.3 + frames] + [np.interp(frames, run.time, np.degrees(
-        run.angle(j.name))) for j in model.joints])
-    angles.write_text("time," + ",".join(j.name for j in model.joints) + "\n" + "\n".join(
-        ",".join(f"{v:.6f}" for v in row) for row in table) + "\n")
-    seen = {}
-
-    class Reached(Exception):
-        pass
-
-    def stop(problem, *_, **__):
-        seen["target"] = problem.target
-        raise Reached
-
-    monkeypatch.setattr(outputs, "fit_and_write", stop)
-    with pytest.raises(Reached):
-        main(["fit", "--model", "builtin:squat-jump", "--target", str(angles), "--forces",
-              str(plates), "--lab-axes=-y,z", "--quiet", "--out", str(tmp_path / "fit")])
-    target = seen["target"]
+    angles = write_angle_csv(tmp_path / "angles.csv", 0.3 + frames, model,
+                             [np.interp(frames, run.time, np.degrees(run.angle(j.name)))
+                              for j in model.joints])
+    target = fit_target(["--model", "builtin:squat-jump", "--target", str(angles), "--forces",
+                         str(plates), "--lab-axes=-y,z", "--quiet", "--out",
+                         str(tmp_path / "fit")], monkeypatch)
     push = target.elapsed < 0.2
     assert target.time[0] == pytest.approx(0.3)
     assert target.channels["grf_y"][push] == pytest.approx(

@@ -6,7 +6,6 @@ import pytest
 from scipy.integrate import trapezoid
 
 import torquesim as ts
-from torquesim.cli import main
 from torquesim.fitting.target import Target, with_forces
 from torquesim.io.force_plates import (
     check_zero_offset,
@@ -134,34 +133,20 @@ def test_fit_takes_forces_onto_its_target(tmp_path, monkeypatch, capsys):
     """fit --target angles.csv --forces plates.mot --grf-components xy: the fit's target
     carries grf_x and grf_y at the angles' times; the quiet standing's mass is reported beside
     the model's."""
-    import torquesim.fitting.outputs as outputs
+    from .conftest import fit_target, write_angle_csv
 
     model = ts.load_model("builtin:squat-jump")
     run = ts.simulate(model, "imex", step=1e-4, output_step=1 / 120)
     cols = run.columns()
-    angles = tmp_path / "angles.csv"
-    names = [j.name for j in model.joints]
-    table = np.column_stack([run.time] + [np.degrees(run.angle(n)) for n in names])
-    angles.write_text("time," + ",".join(names) + "\n"
-                      + "\n".join(",".join(f"{v:.6f}" for v in r) for r in table) + "\n")
+    angles = write_angle_csv(tmp_path / "angles.csv", run.time, model,
+                             [np.degrees(run.angle(j.name)) for j in model.joints])
     fine = np.arange(-0.3, 0.6, 1 / 960)
     fy = np.interp(fine, run.time, cols["grf_y"], left=cols["grf_y"][0])
     fx = np.interp(fine, run.time, cols["grf_x"], left=cols["grf_x"][0])
     forces = _write_plates(tmp_path / "plates.mot", fine, fx, fy, 0.55)
-    seen = {}
-
-    class Reached(Exception):
-        pass
-
-    def stop(problem, *_, **__):
-        seen["target"] = problem.target
-        raise Reached
-
-    monkeypatch.setattr(outputs, "fit_and_write", stop)
-    with pytest.raises(Reached):
-        main(["fit", "--model", "builtin:squat-jump", "--target", str(angles), "--forces",
-              str(forces), "--grf-components", "xy", "--quiet", "--out", str(tmp_path / "fit")])
-    target = seen["target"]
+    target = fit_target(["--model", "builtin:squat-jump", "--target", str(angles), "--forces",
+                         str(forces), "--grf-components", "xy", "--quiet", "--out",
+                         str(tmp_path / "fit")], monkeypatch)
     assert set(target.channels) == {"grf_x", "grf_y"}
     inside = target.time < 0.2  # the push, away from the take-off the filter rounds
     assert target.channels["grf_y"][inside] == pytest.approx(

@@ -111,18 +111,31 @@ class Target:
         noise = np.median(np.abs(np.diff(first, n=3, axis=1)), axis=1) / (0.6745
                                                                           * math.sqrt(20))
         for row in np.flatnonzero(noise > NOISE_FREE):
-            start[row] = float(self.smoothed(int(row))(0.0))
+            try:
+                start[row] = float(self.smoothed(int(row))(0.0))
+            except (ValueError, np.linalg.LinAlgError):
+                pass  # no spline through these samples: the first sample as recorded
         return start
 
     def start_speeds(self) -> np.ndarray:
-        """Each joint's angular velocity at the first sample, rad/s: the derivative at t0 of
-        the smoothing spline of `smoothed`; all zero when every joint moves slower than
-        `STILL` there (a recording that starts still: the fit starts at rest, in static
-        equilibrium)."""
-        if self.time.size < 5:
+        """Each joint's angular velocity at the first sample, rad/s: the derivative at t0 of a
+        smoothing spline (as `smoothed`) through the first `START_WINDOW` samples (a second-
+        order one-sided difference if the spline cannot be made, e.g. exact data sampled
+        densely); all zero when every joint moves slower than `STILL` there (a recording that
+        starts still: the fit starts at rest, in static equilibrium)."""
+        from scipy.interpolate import make_smoothing_spline
+
+        count = min(self.time.size, START_WINDOW)
+        if count < 5:
             return np.zeros(len(self.joints))
-        speeds = np.array([float(self.smoothed(row).derivative()(0.0))
-                           for row in range(len(self.joints))])
+        t = self.elapsed[:count]
+        speeds = np.empty(len(self.joints))
+        for row in range(len(self.joints)):
+            q = self.angles[row, :count]
+            try:
+                speeds[row] = float(make_smoothing_spline(t, q).derivative()(0.0))
+            except (ValueError, np.linalg.LinAlgError):
+                speeds[row] = float(np.gradient(q[:3], t[:3], edge_order=2)[0])
         return speeds if np.max(np.abs(speeds)) >= STILL else np.zeros_like(speeds)
 
     def angular_velocity(self) -> np.ndarray:
@@ -208,6 +221,8 @@ NOISE_FREE = math.radians(0.01)
 #: A recording whose joints all move slower than this at its first sample starts still, rad/s
 #: (5°/s: 0.5° over the first 0.1 s, within the noise of a motion capture's angles).
 STILL = math.radians(5.0)
+#: The samples a start speed is judged on (at 100-200 Hz, 0.2-0.4 s).
+START_WINDOW = 40
 #: Largest median interval between a target's samples, s: a motion recorded in ms instead of
 #: s shows its samples 1 to 10 "s" apart.
 MAX_SAMPLE_INTERVAL = 0.5
