@@ -198,7 +198,7 @@ def plot_conventions(model, maps: dict | None = None):
     ({map name: {joint: expression}}, e.g. the default OpenSim maps) are listed beside it."""
     from matplotlib.patches import Arc, FancyArrowPatch
 
-    fig = _figure(figsize=(11.0 if maps else 7.0, 6.4))
+    fig = _figure(figsize=(11.0, 6.4) if maps else (6.4, 5.6))
     grid = fig.add_gridspec(1, 2 if maps else 1, width_ratios=(1.25, 1) if maps else (1,))
     ax = fig.add_subplot(grid[0, 0])
     state = model.initial_state().state[:model.n_coordinates].copy()
@@ -256,7 +256,7 @@ def plot_conventions(model, maps: dict | None = None):
     for spot in pose["points"]:
         ax.plot(*spot, marker="^", ms=7, color="tab:orange")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.margins(0.45, 0.22)
+    ax.margins(0.7, 0.25)
     ax.set_title(textwrap.fill(f"{model.name}"
                                + (" (drawn at illustrative angles)" if shown else "")
                                + ": each angle from the dashed line to its segment, "
