@@ -144,8 +144,9 @@ Fit them with
 
 
 
-#: The jumper of examples/jump: 72 kg, 1.78 m, female (de Leva), with knee extensors 15 %
-#: stronger than the preset's scaling and the hip and ankle switched on 20 ms later.
+#: The jumper of examples/jump: 72 kg, 1.78 m, female (de Leva), with the knee extensors the
+#: dynamometer measured (`SUBJECT`, both legs: T0 and T_max doubled, as `strength --limbs 2`
+#: writes them) and the hip and ankle switched on 20 ms later than the preset's.
 JUMPER = (72.0, 1.78, "female")
 
 
@@ -165,9 +166,9 @@ def jump_recording() -> None:
     units = []
     for unit in model.units:
         if unit.name == "knee_extensors":
-            unit = replace(unit, parameters=replace(
-                unit.parameters, isometric_torque=1.15 * unit.parameters.isometric_torque,
-                eccentric_torque_max=1.15 * unit.parameters.eccentric_torque_max))
+            measured = {**SUBJECT, "isometric_torque": 2 * SUBJECT["isometric_torque"],
+                        "eccentric_torque_max": 2 * SUBJECT["eccentric_torque_max"]}
+            unit = replace(unit, parameters=replace(unit.parameters, **measured))
         if unit.name in ("hip_extensors", "plantarflexors"):
             first, second = unit.activation.ramps
             unit = replace(unit, activation=ActivationProfile(
