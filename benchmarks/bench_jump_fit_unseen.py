@@ -6,7 +6,8 @@ Run:  python benchmarks/bench_jump_fit_unseen.py [--angles-only] [--starts N] [-
 Two targets, each made by `builtin:squat-jump` with other extensor timings and levels
 (simulated by the reference solver, 200 Hz): "late-ankle" (plantarflexors at 150 ms and 0.9,
 knee extensors at 45 ms and 0.95, hip extensors at 50 ms and 0.85) and "early-hip"
-(110 ms / 1.0, 60 ms / 0.9, 10 ms / 1.0); the preset's 125, 45 and 30 ms at full level. The fitted model has the same structure, so an exact
+(110 ms / 1.0, 60 ms / 0.9, 10 ms / 1.0); the preset's 125, 45 and 30 ms at full level.
+The fitted model has the same structure, so an exact
 fit exists. Prints, per target, the fit's RMS per joint and of the vertical ground reaction
 force (% of body weight) with the reference, simulations and wall time. With
 ``--angles-only`` the target holds only the four angles (the force is then reported, not
