@@ -216,10 +216,10 @@ def squat_jump() -> ChainModel:
             "ms, ankle at 125 ms; 50 ms ramps to 1), held at full level for 150, 130 and 60 ms, "
             "then off (0.05) in 50 ms. Antagonists at 0.1 in the squat, braced for the flight "
             "from 230-235 ms (50 ms ramps: knee flexors to 0.44 for 85 ms, hip flexors to 0.31 "
-            "for 110 ms, then back to 0.1; dorsiflexors to 0.32). Timings chosen (CMA-ES on the "
-            "preset, 16 timings and levels) for a flight near 0.28 m, |v_x| < 0.1 m/s at "
-            "take-off and no end stop above 5 % of its joint's peak torque; recorded squat "
-            "jumps of active adults fly 0.25-0.35 m.",))
+            "for 110 ms, then back to 0.1; dorsiflexors to 0.32). Timings chosen by CMA-ES "
+            "(scripts/tune_squat_jump.py, 15 timings and levels) for a flight near 0.28 m, "
+            "|v_x| < 0.1 m/s at take-off and no end stop above 5 % of its joint's peak torque; "
+            "recorded squat jumps of active adults fly 0.25-0.35 m.",))
 
 
 PRESETS: dict[str, Callable[[], ChainModel]] = dict(zip(
