@@ -253,7 +253,8 @@ def summary_lines(summary: dict) -> list[str]:
         "reference     = the fitted model re-simulated with Radau",
         "activation    mean " + ", ".join(f"{u} {a:.3f}"
                                           for u, a in summary["mean_activation"].items()),
-        f"start         {summary['initial_guess_objective_deg']:.3f} deg (inverse dynamics)",
+        f"start         {summary['initial_guess_objective_deg']:.3f} deg (the better of "
+        "inverse dynamics and, on a free body, the model's own ramps)",
         f"simulations   {summary['simulations']} ({summary['failed_simulations']} failed), "
         f"{summary['simulations_per_second']:.0f} per second",
         f"wall time     {summary['wall_time_s']:.1f} s",

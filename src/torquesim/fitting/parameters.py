@@ -186,6 +186,24 @@ def vector(profiles) -> np.ndarray:
     return np.array(out)
 
 
+def own_vector(model) -> np.ndarray | None:
+    """``model``'s own activation profiles as the fit's parameter vector: each unit's ramps,
+    padded to `RAMPS_PER_UNIT` with ramps that hold its last level (None when a unit has more
+    ramps than the fit uses)."""
+    profiles = []
+    for unit in model.units:
+        ramps = list(unit.activation.ramps)
+        if len(ramps) > RAMPS_PER_UNIT:
+            return None
+        level = ramps[-1].level if ramps else unit.activation.initial_level
+        if level is None:  # no ramps and the equilibrium level: held at it
+            level = 0.0
+        ramps += [Ramp(0.0, DEFAULT_BOUNDS["duration"][0], level)] * (RAMPS_PER_UNIT
+                                                                      - len(ramps))
+        profiles.append(replace(unit.activation, ramps=tuple(ramps)))
+    return vector(profiles)
+
+
 def with_ramps(model, x, initial_levels) -> object:
     """``model`` (a chain) with every unit's activation the 3 ramps of ``x`` from
     ``initial_levels`` (None: the model's; a number: that level; per unit)."""
