@@ -195,7 +195,9 @@ def docs_block(load: float) -> str:
     if JUMP:
         lines += ["", "The squat jump on its own built-in target (four angles, total GRF and "
                   "centre of mass; 54 parameters), errors", "with the reference solver; "
-                  "\"command\" is the whole `torquesim fit --model builtin:squat-jump`, warm:",
+                  "\"command\" is the whole `torquesim fit --model builtin:squat-jump`, warm "
+                  "(it starts from the preset's own ramps, which made the target: the unseen "
+                  "jumps below test the search):",
                   "", "| worst joint RMS | vertical GRF RMS | CoM RMS | simulations | step | fit "
                   "| command |", "|---|---|---|---|---|---|---|"]
         lines += [f"| {j:.3f}° | {g:.3f} % body weight | {c:.4f} cm | {n} | {h:g} ms | "

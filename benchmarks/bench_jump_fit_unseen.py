@@ -100,8 +100,9 @@ def main() -> None:
                  "extensor timings and levels (late-ankle: plantarflexors at 150 ms and 0.9, "
                  "knee extensors at 45 ms and 0.95, hip extensors at 50 ms and 0.85; early-hip: "
                  "110 ms / 1.0, 60 ms / 0.9, 10 ms / 1.0; the preset: 125, 45 and 30 ms at "
-                 "full level), fitted with the defaults from the "
-                 "inverse-dynamics start; errors with the reference solver.\n\n"
+                 "full level), fitted with the defaults from the better of the "
+                 "inverse-dynamics start and the preset's own ramps; errors with the reference "
+                 "solver.\n\n"
                  "| target | start objective | objective | worst joint RMS | vertical GRF RMS "
                  "(body weight) | simulations | wall |\n|---|---|---|---|---|---|---|\n"
                  + "\n".join(rows) + "\n")
