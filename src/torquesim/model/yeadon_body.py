@@ -33,7 +33,7 @@ from pathlib import Path
 
 from ..errors import ModelError
 
-#: Solids of one side, the level they start at and the segment's length, per part.
+#: The solids of one side (the left; the package makes the sides alike) lumped into each part.
 PART_SOLIDS = {
     "thigh": ("j0", "j1", "j2"),
     "shank": ("j3", "j4"),
