@@ -87,13 +87,13 @@ class Target:
         """Sample times from the start of the target, s."""
         return self.time - self.time[0]
 
-    def smoothed(self, row: int = 0):
-        """A smoothing spline q(t − t0) through row ``row``'s samples (smoothing chosen by
-        generalised cross-validation: exact data are nearly interpolated, noisy data are
-        smoothed); ``.derivative(n)`` gives q̇ and q̈."""
+    def smoothed(self, row: int = 0, samples: int | None = None):
+        """A smoothing spline q(t − t0) through row ``row``'s samples (the first ``samples``
+        of them; default all; smoothing chosen by generalised cross-validation: exact data are
+        nearly interpolated, noisy data are smoothed); ``.derivative(n)`` gives q̇ and q̈."""
         from scipy.interpolate import make_smoothing_spline
 
-        return make_smoothing_spline(self.elapsed, self.angles[row])
+        return make_smoothing_spline(self.elapsed[:samples], self.angles[row, :samples])
 
     def start_angles(self) -> np.ndarray:
         """Each joint's angle at the first sample, rad: for a recording with noise the value
@@ -123,19 +123,15 @@ class Target:
         order one-sided difference if the spline cannot be made, e.g. exact data sampled
         densely); all zero when every joint moves slower than `STILL` there (a recording that
         starts still: the fit starts at rest, in static equilibrium)."""
-        from scipy.interpolate import make_smoothing_spline
-
-        count = min(self.time.size, START_WINDOW)
-        if count < 5:
+        if self.time.size < 5:
             return np.zeros(len(self.joints))
-        t = self.elapsed[:count]
         speeds = np.empty(len(self.joints))
         for row in range(len(self.joints)):
-            q = self.angles[row, :count]
             try:
-                speeds[row] = float(make_smoothing_spline(t, q).derivative()(0.0))
+                speeds[row] = float(self.smoothed(row, START_WINDOW).derivative()(0.0))
             except (ValueError, np.linalg.LinAlgError):
-                speeds[row] = float(np.gradient(q[:3], t[:3], edge_order=2)[0])
+                speeds[row] = float(np.gradient(self.angles[row, :3], self.elapsed[:3],
+                                                edge_order=2)[0])
         return speeds if np.max(np.abs(speeds)) >= STILL else np.zeros_like(speeds)
 
     def angular_velocity(self) -> np.ndarray:
