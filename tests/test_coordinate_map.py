@@ -142,7 +142,7 @@ def test_bad_maps_are_one_line_errors(jump, tmp_path, capsys):
 def test_the_conventions_figure_draws_each_angle_from_its_zero_line(name, tmp_path):
     """Each joint's arc spans its drawn angle (|q| in degrees) and starts or ends on the zero
     line: the parent's axis carried on (for the root, the base direction); `--conventions`
-    writes it, with the OpenSim maps beside the jump."""
+    writes it, with the OpenSim maps below the jump."""
     from matplotlib.patches import Arc
 
     from torquesim.cli import conventions_figure
@@ -163,6 +163,6 @@ def test_the_conventions_figure_draws_each_angle_from_its_zero_line(name, tmp_pa
             parent = model.parents[k]
             zero = math.degrees(model.base_angle if parent < 0 else angles[parent]) - 90.0
             assert min(abs(arc.theta1 - zero), abs(arc.theta2 - zero)) < 1e-9
-    assert (len(fig.axes) == 2) == free  # the maps beside the jump
+    assert (len(fig.axes) == 2) == free  # the maps below the jump
     assert main(["model", name, "--conventions", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").stat().st_size > 10_000

@@ -195,11 +195,11 @@ def plot_conventions(model, maps: dict | None = None):
     value in degrees; the units acting there, + pulling towards positive. On a fixed base a
     joint that starts within 23° of its zero is drawn at ±40° (inside its end stops) so that
     its arc can be seen, and the title says so. ``maps``
-    ({map name: {joint: expression}}, e.g. the default OpenSim maps) are listed beside it."""
+    ({map name: {joint: expression}}, e.g. the default OpenSim maps) are listed below it."""
     from matplotlib.patches import Arc, FancyArrowPatch
 
-    fig = _figure(figsize=(11.0, 6.4) if maps else (6.4, 5.6))
-    grid = fig.add_gridspec(1, 2 if maps else 1, width_ratios=(1.25, 1) if maps else (1,))
+    fig = _figure(figsize=(7.2, 9.0) if maps else (6.4, 5.6))
+    grid = fig.add_gridspec(2 if maps else 1, 1, height_ratios=(2.6, 1) if maps else (1,))
     ax = fig.add_subplot(grid[0, 0])
     state = model.initial_state().state[:model.n_coordinates].copy()
     shown = False
@@ -255,8 +255,12 @@ def plot_conventions(model, maps: dict | None = None):
                     bbox={"fc": "white", "ec": "none", "alpha": 0.85, "pad": 1.0})
     for spot in pose["points"]:
         ax.plot(*spot, marker="^", ms=7, color="tab:orange")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.margins(0.7, 0.25)
+    ends = lines.reshape(-1, 2)
+    (x0, y0), (x1, y1) = ends.min(axis=0), ends.max(axis=0)
+    # room for the arcs and their labels on every side; equal scales, the box fitted to them
+    ax.set_xlim(x0 - 0.7 * span, x1 + 0.6 * span)
+    ax.set_ylim(y0 - 0.35 * span, y1 + 0.1 * span)
+    ax.set_aspect("equal", adjustable="box")
     ax.set_title(textwrap.fill(f"{model.name}"
                                + (" (drawn at illustrative angles)" if shown else "")
                                + ": each angle from the dashed line to its segment, "
@@ -265,7 +269,7 @@ def plot_conventions(model, maps: dict | None = None):
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m), up")
     if maps:
-        side = fig.add_subplot(grid[0, 1])
+        side = fig.add_subplot(grid[1, 0])
         side.axis("off")
         text = []
         import re
@@ -274,7 +278,7 @@ def plot_conventions(model, maps: dict | None = None):
             text.append(f"--map {name} (degrees):")
             for joint, expression in table.items():
                 shown = re.sub(r"\d+\.\d{3,}", lambda m: f"{float(m.group()):.2f}", expression)
-                text += textwrap.wrap(f"{joint} = {shown}", 46, initial_indent="  ",
+                text += textwrap.wrap(f"{joint} = {shown}", 80, initial_indent="  ",
                                       subsequent_indent="      ")
             text.append("")
         side.text(0.0, 1.0, "\n".join(text), va="top", ha="left", family="monospace",
