@@ -15,6 +15,7 @@ from torquesim.model.anthropometry import (
     for_subject,
     mass_fractions,
     segment_values,
+    strength_ratio,
 )
 from torquesim.model.preset_names import PRESET_NAMES
 
@@ -92,6 +93,45 @@ def test_women_get_de_leva_s_female_proportions():
         (0.3685 / 1.735) / (0.4222 / 1.741))
 
 
+def _t0(model, unit):
+    return {u.name: u for u in model.units}[unit].parameters.isometric_torque
+
+
+def test_strengths_follow_anderson_by_sex_and_age():
+    """Same size: a young woman's knee extensors are 0.159/0.163 of a young man's, her
+    dorsiflexors 0.027/0.033 (Anderson et al. 2007, Table 3, C1 per body weight × height); a
+    man's plantarflexors at 60 are 0.114/0.095 of his at 21.5, at 40 linearly between, and
+    from 70 on the over-65 group's; the SE stiffness moves with T0 (its strain at T0 stays);
+    the elbow, with no table, takes the mean of the six lower-limb ratios."""
+    jump = ts.load_model("builtin:squat-jump")
+    man = for_subject(jump, Subject(70.0, 1.75, "male"))
+    woman = for_subject(jump, Subject(70.0, 1.75, "female"))
+    assert _t0(woman, "knee_extensors") / _t0(man, "knee_extensors") == pytest.approx(
+        0.159 / 0.163, rel=1e-12)
+    assert _t0(woman, "dorsiflexors") / _t0(man, "dorsiflexors") == pytest.approx(
+        0.027 / 0.033, rel=1e-12)
+    aged = {age: _t0(for_subject(jump, Subject(70.0, 1.75, "male", age)), "plantarflexors")
+            for age in (18, 21.5, 40, 60, 70, 90)}
+    assert aged[18] == aged[21.5] == pytest.approx(_t0(man, "plantarflexors"), rel=1e-12)
+    assert aged[60] / aged[21.5] == pytest.approx(0.114 / 0.095, rel=1e-12)
+    assert aged[40] == pytest.approx(aged[21.5] + (aged[60] - aged[21.5]) * 18.5 / 38.5,
+                                     rel=1e-12)
+    assert aged[90] == aged[70] == pytest.approx(aged[21.5] * 0.106 / 0.095, rel=1e-12)
+    for unit in jump.units:
+        tm, tw = ({u.name: u for u in m.units}[unit.name].parameters for m in (man, woman))
+        assert tw.se_stiffness / tm.se_stiffness == pytest.approx(
+            tw.isometric_torque / tm.isometric_torque, rel=1e-12)
+    curl = ts.load_model("builtin:elbow-curl")
+    ratios = [0.181 / 0.161, 0.127 / 0.113, 0.159 / 0.163, 0.080 / 0.087, 0.104 / 0.095,
+              0.027 / 0.033]
+    assert strength_ratio(None, "female", None) == pytest.approx(sum(ratios) / 6, rel=1e-12)
+    w = for_subject(curl, Subject(70.0, 1.75, "female"))
+    m = for_subject(curl, Subject(70.0, 1.75, "male"))
+    assert _t0(w, "elbow_flexor") / _t0(m, "elbow_flexor") == pytest.approx(
+        sum(ratios) / 6, rel=1e-12)
+    assert "mean lower-limb ratio, est." in w.notes[0] and "Anderson" in w.notes[0]
+
+
 def test_a_subject_s_jump_runs_and_jumps(tmp_path):
     """The command of issue 31: the model file loads, simulates, leaves the ground."""
     out = tmp_path / "me.toml"
@@ -110,6 +150,9 @@ def test_a_subject_s_jump_runs_and_jumps(tmp_path):
      "--body-mass: 500 is out of range; allowed [20, 250] kg"),
     (["--body-mass", "70"], "--height: required"),
     (["--height", "3", "--body-mass", "70"], "--height: 3 is out of range; allowed [1, 2.5] m"),
+    (["--body-mass", "70", "--height", "1.7", "--age", "12"],
+     "--age: 12 is out of range; allowed [18, 100] years"),
+    (["--age", "30"], "--body-mass: required"),
 ])
 def test_bad_subjects_are_one_line_errors(options, message, tmp_path, capsys):
     assert main(["model", "squat-jump", *options, "--out", str(tmp_path / "x.toml")]) == 2

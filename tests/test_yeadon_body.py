@@ -133,11 +133,22 @@ def test_bad_measurement_files_are_one_line_errors(edit, message, tmp_path, caps
     assert not out.exists()
 
 
-def test_measurements_refuse_sex_and_model_files(tmp_path, capsys):
-    out = tmp_path / "x.toml"
+def test_measurements_take_sex_and_age_for_strengths_and_refuse_model_files(tmp_path, capsys):
+    """--sex and --age with --measurements change the strengths only (Anderson's ratios), not
+    the measured segments."""
+    out, older = tmp_path / "x.toml", tmp_path / "o.toml"
+    assert main(["model", "squat-jump", "--measurements", str(MALE), "--out", str(out)]) == 0
     assert main(["model", "squat-jump", "--measurements", str(MALE), "--sex", "female",
-                 "--out", str(out)]) == 2
-    assert "error: --sex: not used with --measurements" in capsys.readouterr().err
+                 "--age", "60", "--out", str(older)]) == 0
+    a, b = ts.load_model(str(out)), ts.load_model(str(older))
+    assert [s.mass for s in a.segments] == [s.mass for s in b.segments]
+    knee = [{u.name: u for u in m.units}["knee_extensors"].parameters.isometric_torque
+            for m in (a, b)]
+    assert knee[1] / knee[0] == pytest.approx(0.128 / 0.163, rel=1e-12)
+    assert main(["model", "squat-jump", "--measurements", str(MALE), "--age", "101",
+                 "--out", str(tmp_path / "z.toml")]) == 2
+    assert "error: --age: 101 is out of range; allowed [18, 100] years" in \
+        capsys.readouterr().err
     assert main(["model", "elbow-curl", "--out", str(out)]) == 0
     assert main(["model", str(out), "--measurements", str(MALE), "--out",
                  str(tmp_path / "y.toml")]) == 2

@@ -397,11 +397,16 @@ def conventions_figure(chain):
                    ".pdf, .svg).")
 @click.option("--body-mass", type=float, default=None,
               help="Make the built-in model for a subject of this body mass (kg, 20-250; "
-              "with --height): segments from de Leva (1996), strengths scaled.")
+              "with --height): segments from de Leva (1996), strengths scaled by size, sex "
+              "and age (Anderson et al. 2007).")
 @click.option("--height", type=float, default=None,
               help="The subject's standing height (m, 1.0-2.5; with --body-mass).")
 @click.option("--sex", type=click.Choice(["male", "female"]), default=None,
-              help="The subject's sex, for de Leva's tables. Default: male.")
+              help="The subject's sex, for de Leva's segment tables and Anderson's strengths "
+                   "(with --measurements: strengths only). Default: male.")
+@click.option("--age", type=float, default=None,
+              help="The subject's age (years, 18-100), for Anderson et al.'s (2007) strengths "
+                   "by age. Default: a young adult (18-25), as the presets.")
 @click.option("--measurements", "measurements", type=click.Path(dir_okay=False), default=None,
               help="Make the built-in model from the subject's own measurements: a Yeadon "
                    "measurement file (95 lengths, perimeters and widths; the yeadon package's "
@@ -410,8 +415,8 @@ def conventions_figure(chain):
 @click.option("--densities", type=click.Choice(["Dempster", "Chandler", "Clauser"]),
               default="Dempster", show_default=True,
               help="Segment densities of Yeadon's model (with --measurements).")
-def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, measurements,
-          densities):
+def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, age,
+          measurements, densities):
     """Write a model as an editable TOML file: a preset (NAME is one of the presets listed by
     `torquesim simulate --help`; builtin: prefix optional), made for a subject with
     --body-mass and --height (de Leva) or --measurements (Yeadon), or a checked, rewritten
@@ -430,29 +435,28 @@ def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, m
                          f"{', '.join(PRESETS)} or a model file")
     source = PREFIX + name if name in PRESETS else name
     chain = load_model(source)
-    personal = body_mass is not None or height is not None or sex is not None
+    personal = (body_mass is not None or height is not None or sex is not None
+                or age is not None)
     if (personal or measurements is not None) and not source.startswith(PREFIX):
         option = "--measurements" if measurements is not None else "--body-mass"
         raise ModelError(option, f"{name!r} is a model file; allowed: a built-in model "
                          f"({', '.join(PRESETS)}), whose segments are de Leva's")
-    options = {"body_mass": "--body-mass", "height": "--height"}
+    options = {"body_mass": "--body-mass", "height": "--height", "age": "--age"}
     if measurements is not None:
         from .model.anthropometry import for_measured
         from .model.yeadon_body import read_measurements
 
-        if sex is not None:
-            raise ModelError("--sex", "not used with --measurements (Yeadon's model takes the "
-                             "subject's own shape); allowed: --sex only with --body-mass and "
-                             "--height")
-        if body_mass is not None:
-            from .errors import check_range
+        from .errors import check_range
 
+        if body_mass is not None:
             check_range("--body-mass", body_mass, 20.0, 250.0, unit="kg")
+        if age is not None:
+            check_range("--age", age, 18.0, 100.0, unit="years")
         body = read_measurements(measurements, body_mass, densities)
         for said in body.warnings:
             click.echo(f"note: yeadon: {said}", err=True)
         try:
-            chain = for_measured(chain, body, body_mass, height)
+            chain = for_measured(chain, body, body_mass, height, sex or "male", age)
         except ModelError as exc:
             raise _as_option(exc, options) from None
         click.echo(f"measured body {body.mass:.1f} kg, standing height "
@@ -462,12 +466,12 @@ def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, m
         from .model.anthropometry import Subject, for_subject
 
         if body_mass is None or height is None:
-            missing = "--height" if height is None else "--body-mass"
+            missing = "--body-mass" if body_mass is None else "--height"
             raise ModelError(missing, "required to make a model for a subject; allowed: "
-                             "--body-mass KG --height M [--sex male|female], or "
+                             "--body-mass KG --height M [--sex male|female] [--age Y], or "
                              "--measurements FILE")
         try:
-            chain = for_subject(chain, Subject(body_mass, height, sex or "male"))
+            chain = for_subject(chain, Subject(body_mass, height, sex or "male", age))
         except ModelError as exc:
             raise _as_option(exc, options) from None
     if out_path:

@@ -17,14 +17,23 @@ the reference man gets the preset back exactly and a subject gets de Leva's prop
   of mass and length with the height, its inertia with mass × height²;
 - external loads (a dumbbell, an ankle weight) keep their mass;
 - each unit's T0 and T_max, and its SE stiffness (so the SE strain at T0 stays), times
-  (body mass × height) / (73 kg × 1.741 m): strength normalised as N·m per kg·m, a reasoned
-  estimate with no sex or age factor (a `torquesim strength` fit replaces it).
+  (body mass × height) / (73 kg × 1.741 m) × the ratio of Anderson et al.'s (2007) peak
+  torque of the unit's exertion, for the subject's sex and age, to a young man's (see
+  `strength_ratio`; a `torquesim strength` fit replaces the estimate).
+
+Anderson DE, Madigan ML, Nussbaum MA (2007) Maximum voluntary joint torque as a function of
+joint angle and angular velocity: model development and application to the lower limb. J
+Biomech 40:3105–3113, Table 3: the mean peak isometric torque C1, normalised to body weight ×
+height, of hip, knee and ankle extension and flexion, by sex, for ages 18–25, 55–65 and over
+65 (their subjects' means stand here at 21.5, 60 and 70 years).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+
+import numpy as np
 
 from ..errors import ModelError, check_range
 from .yeadon_body import Part
@@ -58,6 +67,27 @@ DE_LEVA = {
 PAIRED = ("upper_arm", "forearm", "hand", "thigh", "shank", "foot")
 #: Mean stature of de Leva's (Zatsiorsky's) subjects, m.
 STATURE = {"male": 1.741, "female": 1.735}
+#: Anderson et al. (2007) Table 3, mean C1 (peak torque / (body weight × height)) by
+#: (joint, direction) and sex, for the age groups 18–25, 55–65 and over 65.
+ANDERSON_C1 = {
+    ("hip", "extension"): {"male": (0.161, 0.171, 0.144), "female": (0.181, 0.140, 0.138)},
+    ("hip", "flexion"): {"male": (0.113, 0.107, 0.101), "female": (0.127, 0.091, 0.081)},
+    ("knee", "extension"): {"male": (0.163, 0.156, 0.137), "female": (0.159, 0.128, 0.124)},
+    ("knee", "flexion"): {"male": (0.087, 0.081, 0.069), "female": (0.080, 0.060, 0.060)},
+    ("ankle", "extension"): {"male": (0.095, 0.114, 0.106),
+                             "female": (0.104, 0.093, 0.125)},
+    ("ankle", "flexion"): {"male": (0.033, 0.028, 0.029), "female": (0.027, 0.024, 0.022)},
+}
+#: The age each of Anderson's groups stands for, years (18–25, 55–65, over 65; est.).
+ANDERSON_AGES = (21.5, 60.0, 70.0)
+#: The Anderson exertion of each preset unit (ankle extension is plantarflexion).
+UNIT_EXERTION = {
+    "hip_extensors": ("hip", "extension"), "hip_flexors": ("hip", "flexion"),
+    "knee_extensors": ("knee", "extension"), "knee_extensor": ("knee", "extension"),
+    "knee_flexors": ("knee", "flexion"), "knee_flexor": ("knee", "flexion"),
+    "plantarflexors": ("ankle", "extension"), "dorsiflexors": ("ankle", "flexion"),
+}
+
 #: The subject the presets are built for.
 REFERENCE_MASS, REFERENCE_HEIGHT, REFERENCE_SEX = 73.0, 1.741, "male"
 #: The de Leva segments each preset segment or body-part load is, proximal first.
@@ -84,18 +114,24 @@ class Subject:
     height : float
         Standing height, m. Bounds [1.0, 2.5].
     sex : str
-        "male" or "female" (de Leva's tables are by sex).
+        "male" or "female" (de Leva's and Anderson's tables are by sex).
+    age : float or None
+        Years. Bounds [18, 100]. None: a young adult (Anderson's 18–25 group), as the
+        presets' reference man.
     """
 
     body_mass: float
     height: float
     sex: str = "male"
+    age: float | None = None
 
     def __post_init__(self) -> None:
         check_range("body_mass", self.body_mass, 20.0, 250.0, unit="kg")
         check_range("height", self.height, 1.0, 2.5, unit="m")
         if self.sex not in SEXES:
             raise ModelError("sex", f"{self.sex!r}; allowed: {', '.join(SEXES)}")
+        if self.age is not None:
+            check_range("age", self.age, 18.0, 100.0, unit="years")
 
 
 REFERENCE = Subject(REFERENCE_MASS, REFERENCE_HEIGHT, REFERENCE_SEX)
@@ -119,6 +155,19 @@ def segment_values(parts: tuple[str, ...], subject: Subject) -> tuple[float, flo
         inertia += m * ((gyration * length) ** 2 + c * c)
         start += length
     return mass, start, moment / mass, inertia
+
+
+def strength_ratio(exertion: tuple[str, str] | None, sex: str, age: float | None) -> float:
+    """Anderson et al.'s (2007) peak torque per body weight × height of ``exertion`` ((joint,
+    direction), e.g. ("knee", "extension")) for ``sex`` at ``age`` (years; None: 21.5), over a
+    young man's: linear in age between the groups' ages `ANDERSON_AGES`, constant beyond them.
+    An exertion without a table (None: the elbow, the shoulder) takes the mean of the six
+    lower-limb ratios (est.)."""
+    years = ANDERSON_AGES[0] if age is None else age
+    if exertion is None:
+        return sum(strength_ratio(e, sex, years) for e in ANDERSON_C1) / len(ANDERSON_C1)
+    table = ANDERSON_C1[exertion]
+    return float(np.interp(years, ANDERSON_AGES, table[sex])) / table["male"][0]
 
 
 def mass_fractions(sex: str) -> float:
@@ -177,7 +226,8 @@ def _refuse_unknown(model) -> None:
 def _finish(model, segments, length_ratio: dict, subject: Subject, note: str, joints=None):
     """The model with ``segments``; parent distances and points moved with their segment's
     length ratio; each unit's T0, T_max and SE stiffness times (body mass × height) / (73 kg ×
-    1.741 m); ``note`` (with the strength factor appended) before the preset's notes."""
+    1.741 m) × `strength_ratio` of its exertion for the subject's sex and age; ``note`` (with
+    the factors appended) before the preset's notes."""
     out = []
     parents = model.parents
     for k, seg in enumerate(segments):
@@ -187,15 +237,23 @@ def _finish(model, segments, length_ratio: dict, subject: Subject, note: str, jo
         out.append(seg)
     points = tuple(replace(p, distance=p.distance * length_ratio[p.segment],
                            offset=p.offset * length_ratio[p.segment]) for p in model.points)
-    strength = (subject.body_mass * subject.height) / (REFERENCE.body_mass * REFERENCE.height)
-    units = tuple(replace(u, parameters=replace(
-        u.parameters, isometric_torque=u.parameters.isometric_torque * strength,
-        eccentric_torque_max=u.parameters.eccentric_torque_max * strength,
-        se_stiffness=u.parameters.se_stiffness * strength)) for u in model.units)
-    note += (f"T0, T_max and SE stiffness times {strength:.4g} (body mass x height, est.; no "
-             "sex or age factor: fit strengths with torquesim strength). The notes below are "
-             "the preset's, for its reference man.")
-    return model.replace(segments=tuple(out), points=points, units=units,
+    size = (subject.body_mass * subject.height) / (REFERENCE.body_mass * REFERENCE.height)
+    units, factors = [], []
+    for u in model.units:
+        ratio = strength_ratio(UNIT_EXERTION.get(u.name), subject.sex, subject.age)
+        factor = size * ratio
+        factors.append(f"{u.name} {factor:.4g}" + ("" if u.name in UNIT_EXERTION else
+                                                   " (mean lower-limb ratio, est.)"))
+        units.append(replace(u, parameters=replace(
+            u.parameters, isometric_torque=u.parameters.isometric_torque * factor,
+            eccentric_torque_max=u.parameters.eccentric_torque_max * factor,
+            se_stiffness=u.parameters.se_stiffness * factor)))
+    age = "a young adult (18-25)" if subject.age is None else f"{subject.age:g} years"
+    note += (f"T0, T_max and SE stiffness times body mass x height ({size:.4g}) x Anderson et "
+             f"al. (2007, Table 3) peak torque of the exertion for a {subject.sex} subject of "
+             f"{age} over a young man's: {', '.join(factors)} (est.: fit strengths with "
+             "torquesim strength). The notes below are the preset's, for its reference man.")
+    return model.replace(segments=tuple(out), points=points, units=tuple(units),
                          joints=model.joints if joints is None else joints,
                          notes=(note, *model.notes))
 
@@ -206,17 +264,18 @@ def _finish(model, segments, length_ratio: dict, subject: Subject, note: str, jo
 REFERENCE_ANKLE_TO_TOE_TIP = math.hypot(0.2581 - 0.05, 0.08)
 
 
-def for_measured(model, body, body_mass: float | None = None, height: float | None = None):
+def for_measured(model, body, body_mass: float | None = None, height: float | None = None,
+                 sex: str = "male", age: float | None = None):
     """``model`` (a preset) made for a subject measured for Yeadon's inertia model (``body``:
     a `torquesim.model.yeadon_body.MeasuredBody`): each segment's mass, length, centre of
     mass and sagittal inertia about its proximal joint in the model are the measured parts'
     (times the number of sides the preset lumps, e.g. both legs); the foot's points scale
     with its ankle-to-toe-tip length; head-arms-trunk takes the body mass left over, its
     centre of mass and inertia measured, its drawn length with the height; external loads
-    keep their mass. Strengths as `for_subject`'s (body mass × height), the body mass and
-    height being given or the measured body's."""
+    keep their mass. Strengths as `for_subject`'s (body mass × height × Anderson's ratio for
+    ``sex`` and ``age``), the body mass and height being given or the measured body's."""
     subject = Subject(body.mass if body_mass is None else body_mass,
-                      body.height if height is None else height)
+                      body.height if height is None else height, sex, age)
     _refuse_unknown(model)
     parts = body.parts
     length_ratio: dict[str, float] = {}
