@@ -10,7 +10,15 @@ A page fails when, after it has loaded and its equations have been typeset:
   ``attr_list`` read text such as ``x_{k-1}`` as attributes and ate letters around it);
 - a figure does not decode;
 - the page, a figure, an equation, or the text of a table cell (header cells included) is
-  wider than the window or than its cell.
+  wider than the window or than its cell;
+- a line of a code block is wider than its box (the reader would have to scroll it), or an
+  identifier in a table cell (``code``) breaks across lines.
+
+Read from the HTML against the code itself:
+- the command-line reference (``cli/``): each option row's description is the option's whole
+  help (a help cut at a ``|`` fails) and its Default cell the option's real default;
+- the API reference (``api/``): every ``torquesim.…`` name in code resolves, and every
+  ``--option`` it mentions is an option of some command.
 Exit code 0 when every page passes, 1 otherwise, 2 when no Chromium is found (install Debian's
 ``chromium`` or set ``CHROMIUM``). ``.ci/run`` runs it after the strict build.
 """
@@ -25,6 +33,7 @@ import shutil
 import sys
 import tempfile
 import threading
+from html.parser import HTMLParser
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -57,6 +66,14 @@ function torquesimCheck() {
         bad.push('garbled markup <' + e.tagName.toLowerCase() + ' ' + a.name + '> near "'
                  + e.textContent.trim().slice(0, 30) + '"');
   });
+  document.querySelectorAll('article pre > code').forEach((e) => {
+    if (e.scrollWidth > e.clientWidth + 1)
+      bad.push('code line wider than its box in "' + e.textContent.trim().slice(0, 40) + '"');
+  });
+  document.querySelectorAll('article td code, article th code').forEach((e) => {
+    if (!/\s/.test(e.textContent.trim()) && e.getClientRects().length > 1)
+      bad.push('identifier "' + e.textContent.trim().slice(0, 40) + '" broken across lines');
+  });
   document.querySelectorAll('article .katex-display, article .arithmatex').forEach((e) => {
     if (e.scrollWidth > e.clientWidth + 1)
       bad.push('equation "' + e.textContent.trim().slice(0, 30) + '" wider than the page');
@@ -80,6 +97,138 @@ function torquesimCheck() {
 }
 window.addEventListener('load', () => setTimeout(torquesimCheck, 1500));
 </script>"""
+
+
+class _Cells(HTMLParser):
+    """Table rows of a page, each with the id of the heading above it: (heading id, [cell
+    text]); and the text of every ``code`` element."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.rows: list[tuple[str | None, list[str]]] = []
+        self.codes: list[str] = []
+        self._heading = None
+        self._row: list[str] | None = None
+        self._cell: list[str] | None = None
+        self._code: list[str] | None = None
+
+    def handle_starttag(self, tag, attrs) -> None:
+        if tag in ("h1", "h2", "h3", "h4") and dict(attrs).get("id"):
+            self._heading = dict(attrs)["id"]
+        elif tag == "tr":
+            self._row = []
+        elif tag in ("td", "th") and self._row is not None:
+            self._cell = []
+        elif tag == "code":
+            self._code = []
+
+    def handle_endtag(self, tag) -> None:
+        if tag in ("td", "th") and self._cell is not None and self._row is not None:
+            self._row.append(" ".join("".join(self._cell).split()))
+            self._cell = None
+        elif tag == "tr" and self._row is not None:
+            self.rows.append((self._heading, self._row))
+            self._row = None
+        elif tag == "code" and self._code is not None:
+            self.codes.append("".join(self._code).strip())
+            self._code = None
+
+    def handle_data(self, data) -> None:
+        for part in (self._cell, self._code):
+            if part is not None:
+                part.append(data)
+
+
+def _commands():
+    """Every command of the CLI by its heading id on the reference page (``torquesim-fit``,
+    ``torquesim-batch-sweep``), with its options."""
+    import click
+
+    from torquesim.cli import cli
+
+    out = {}
+
+    def walk(command, path):
+        out["-".join(path)] = [p for p in command.get_params(click.Context(command))
+                               if isinstance(p, click.Option)]
+        for name, sub in getattr(command, "commands", {}).items():
+            walk(sub, (*path, name))
+
+    walk(cli, ("torquesim",))
+    return out
+
+
+def _shown_default(option) -> str:
+    """The option's default as the reference prints it (a repeatable option with none given:
+    "()", its empty tuple)."""
+    value = option.default
+    if option.multiple and not value:
+        return "()"
+    if value is None or type(value).__name__ in ("Sentinel", "_Sentinel"):
+        return "None"
+    return str(value)
+
+
+def cli_reference_problems(html: str) -> list[str]:
+    """Rows of the CLI reference whose description is not the option's whole help or whose
+    Default cell is not its real default; options the page lacks or does not know."""
+    commands = _commands()
+    page = _Cells()
+    page.feed(html)
+    bad, seen = [], set()
+    shown = {heading for heading, _ in page.rows}
+    for heading, row in page.rows:
+        if heading not in commands or not row or row[0] == "Name":
+            continue
+        if len(row) != 4:
+            bad.append(f"{heading}: a row of {len(row)} cells, not 4: {row[0][:40]!r}")
+            continue
+        names = {n.strip() for n in row[0].split(",")}
+        option = next((o for o in commands[heading] if names & set(o.opts)), None)
+        if option is None:
+            bad.append(f"{heading}: {row[0]!r} is not an option of the command")
+            continue
+        seen.add((heading, option.name))
+        whole = " ".join((option.help or "").replace("`", "").split())
+        if row[2] != whole:
+            bad.append(f"{heading} {row[0]}: description {row[2][-40:]!r} is not the whole "
+                       f"help (…{whole[-40:]!r})")
+        if row[3] != _shown_default(option):
+            bad.append(f"{heading} {row[0]}: Default {row[3]!r}, the real default "
+                       f"{_shown_default(option)!r}")
+    for heading, options in commands.items():
+        for option in options if heading in shown else ():
+            if (heading, option.name) not in seen and not option.hidden:
+                bad.append(f"{heading}: option {option.opts[0]} has no row")
+    return bad
+
+
+def api_reference_problems(html: str) -> list[str]:
+    """Names in the API reference's code that do not exist: a ``torquesim.…`` path that does
+    not resolve, an ``--option`` no command has."""
+    import importlib
+
+    page = _Cells()
+    page.feed(html)
+    options = {o for opts in _commands().values() for p in opts for o in p.opts}
+    bad = []
+    for text in dict.fromkeys(page.codes):
+        if re.fullmatch(r"--[a-z][a-z0-9-]*", text) and text not in options:
+            bad.append(f"api: {text} is not an option of any command")
+        elif re.fullmatch(r"torquesim(\.\w+)+", text):
+            parts = text.split(".")
+            for cut in range(len(parts), 0, -1):
+                try:
+                    found = importlib.import_module(".".join(parts[:cut]))
+                except ImportError:
+                    continue
+                try:
+                    for attr in parts[cut:]:
+                        found = getattr(found, attr)
+                except AttributeError:
+                    bad.append(f"api: {text} does not exist")
+                break
+    return bad
 
 
 class _Quiet(http.server.SimpleHTTPRequestHandler):
@@ -106,6 +255,12 @@ def main(argv=None) -> int:
         print(f"no pages under {args.site}", file=sys.stderr)
         return 1
     failed = 0
+    for name, check in (("cli", cli_reference_problems), ("api", api_reference_problems)):
+        page = args.site / name / "index.html"
+        problems = check(page.read_text(encoding="utf-8")) if page.exists() else [
+            f"{name}/index.html is missing"]
+        failed += bool(problems)
+        print(f"{name}/ against the code: " + ("; ".join(problems) if problems else "OK"))
     with tempfile.TemporaryDirectory() as tmp:
         copy = Path(tmp) / "site"
         shutil.copytree(args.site, copy)

@@ -31,7 +31,11 @@ def test_the_site_checker_finds_raw_math_sentinels_roles_garbling_and_overflowin
         "overflow-x:auto'><span style='display:inline-block;width:600px'>T = k s</span></div>"
         "<table style='width:100px;table-layout:fixed'><tr><th style='width:50px;"
         "white-space:nowrap;overflow:hidden'>a_header_far_too_long_for_its_cell</th></tr>"
-        "</table></article></body></html>")
+        "</table><pre style='width:200px'><code style='display:block;overflow-x:auto'>"
+        "torquesim simulate --model builtin:squat-jump --method imex --step 0.25ms --animate "
+        "jump.gif</code></pre><table style='width:60px;table-layout:fixed'><tr><td>"
+        "<code>--weight-effort-of-the-fit</code></td></tr></table>"
+        "</article></body></html>")
     run = subprocess.run([sys.executable, str(ROOT / "scripts" / "check_site.py"),
                           str(tmp_path / "site")], capture_output=True, text=True, timeout=300)
     assert run.returncode == 1, run.stdout + run.stderr
@@ -43,6 +47,47 @@ def test_the_site_checker_finds_raw_math_sentinels_roles_garbling_and_overflowin
         assert "raw math" in line and "click sentinel" in line and "raw Sphinx role" in line
         assert "overflows its cell" in line and "garbled markup" in line
         assert "wider than the page" in line
+        assert "code line wider than its box" in line and "broken across lines" in line
+
+
+def test_the_site_checker_reads_the_reference_pages_against_the_code():
+    """A Default cell that is not the option's default, a help cut short (at a ``|``, which
+    ends a Markdown table cell), an option the page lacks, an API name or option that does
+    not exist: each is named."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from check_site import api_reference_problems, cli_reference_problems
+
+    def page(rows):
+        cells = "".join(f"<tr><td><code>{n}</code></td><td>t</td><td>{h}</td><td>{d}</td></tr>"
+                        for n, h, d in rows)
+        return (f"<h3 id='torquesim-compare'>torquesim compare</h3><table><tr><th>Name</th>"
+                f"<th>Type</th><th>Description</th><th>Default</th></tr>{cells}</table>")
+
+    import click
+
+    from torquesim.cli import cli
+
+    compare = cli.commands["compare"]
+    rows = [(", ".join(o.opts + o.secondary_opts),
+             " ".join((o.help or "").replace("`", "").split()),
+             "()" if o.multiple else ("None" if o.default is None else str(o.default)))
+            for o in compare.get_params(click.Context(compare)) if isinstance(o, click.Option)]
+    assert cli_reference_problems(page(rows)) == []
+    model = next(i for i, r in enumerate(rows) if r[0] == "--model")
+    wrong = list(rows)
+    wrong[model] = (rows[model][0], rows[model][1], "knee-extension")
+    assert cli_reference_problems(page(wrong)) == [
+        "torquesim-compare --model: Default 'knee-extension', the real default "
+        "'builtin:elbow-curl'"]
+    wrong[model] = (rows[model][0], rows[model][1][:30], rows[model][2])
+    assert "is not the whole help" in cli_reference_problems(page(wrong))[0]
+    assert cli_reference_problems(page(rows[1:]))[-1].endswith(f"option {rows[0][0]} has no "
+                                                              "row")
+    assert api_reference_problems(
+        "<code>--techniques</code><code>--method</code><code>torquesim.simulate</code>"
+        "<code>torquesim.solvers.nothing</code><code>torquesim.model.presets.preset</code>"
+    ) == ["api: --techniques is not an option of any command",
+          "api: torquesim.solvers.nothing does not exist"]
 
 
 def test_the_study_page_holds_its_generated_blocks():

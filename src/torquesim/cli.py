@@ -443,10 +443,9 @@ def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, a
                          f"({', '.join(PRESETS)}), whose segments are de Leva's")
     options = {"body_mass": "--body-mass", "height": "--height", "age": "--age"}
     if measurements is not None:
+        from .errors import check_range
         from .model.anthropometry import for_measured
         from .model.yeadon_body import read_measurements
-
-        from .errors import check_range
 
         if body_mass is not None:
             check_range("--body-mass", body_mass, 20.0, 250.0, unit="kg")
@@ -763,7 +762,7 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
 @click.option("--bound", "bounds", multiple=True, metavar="NAME=LOW,HIGH",
               help="Change a parameter's bounds (repeatable), e.g. "
                    "elbow.flexor.ramp1.delay=0,0.5 (UNIT.rampK.FIELD; UNIT a unit name such as "
-                   "elbow_flexor, or JOINT.flexor|extensor). Defaults: delays 0-1 s, "
+                   "elbow_flexor, or JOINT.flexor or JOINT.extensor). Defaults: delays 0-1 s, "
                    "durations 0.05-0.8 s, levels 0-1.")
 @click.option("--freeze", "frozen", multiple=True, metavar="NAME=VALUE",
               help="Hold a parameter fixed (repeatable), e.g. elbow.extensor.ramp1.level=0.1.")
