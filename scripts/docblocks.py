@@ -28,11 +28,12 @@ PAGES = {
     "docs/tutorial.md": {"cold-start"},
     "docs/concepts.md": {"techniques"},
     "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",
-                        "motion-squat-jump"},
+                        "motion-squat-jump", "motion-countermovement-jump"},
     "docs/model.md": {"contacts-squat-jump"},
 }
 #: The presets whose motion `preset_motion_blocks` describes, in page order.
-MOTION_PRESETS = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump")
+MOTION_PRESETS = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump",
+                  "countermovement-jump")
 
 
 def techniques_block() -> str:
@@ -63,7 +64,8 @@ def _swing(time, angle) -> str:
 def preset_motion_blocks() -> dict[str, str]:
     """The motion of each preset as the reference solver (Radau) gives it, for
     docs/presets.md: per joint start → extreme (time) → end; for a body on the ground its
-    take-off, centre-of-mass rise and peak ground reaction force. Cheap (a few seconds), so
+    take-off, centre-of-mass rise and peak ground reaction force, and for one that starts
+    standing its countermovement (lowest point, least ground force). Cheap (seconds), so
     ``make_docs.py --check`` checks that the page shows the presets as they are."""
     import torquesim as ts
 
@@ -81,9 +83,20 @@ def preset_motion_blocks() -> dict[str, str]:
                       np.abs(c[f"torque_net_{j.name}"]).max(), j.name)
                      for j in model.joints if j.endstop_torque > 0]
             passive, peak, joint = max(stops, key=lambda s: s[0] / s[1])
-            text = (f"Motion (Radau): take-off at {e.take_off:.3f} s at "
+            low = int(np.argmin(c["com_y"][:i]))
+            drop = c["com_y"][0] - c["com_y"][low]
+            start = "the squat"
+            text = ""
+            if drop > 0.05:  # a countermovement from standing
+                start = "standing"
+                least = int(np.argmin(c["grf_y"][:low]))
+                text = (f"Countermovement (Radau): the centre of mass {drop:.3f} m down at "
+                        f"{run.time[low]:.3f} s, the ground force falling to "
+                        f"{c['grf_y'][least] / e.weight:.2f} body weights at "
+                        f"{run.time[least]:.3f} s. ")
+            text += (f"Motion (Radau): take-off at {e.take_off:.3f} s at "
                     f"{c['com_speed_y'][i]:.2f} m/s up and {c['com_speed_x'][i]:+.3f} m/s "
-                    f"forwards; centre of mass {e.rise:.3f} m above the squat at its apex "
+                    f"forwards; centre of mass {e.rise:.3f} m above {start} at its apex "
                     f"({e.apex_time:.3f} s), of which the flight adds {e.flight_height:.3f} m; "
                     f"peak ground reaction force {e.peak_force:.0f} N "
                     f"({e.peak_force / e.weight:.2f} body weights) at {e.peak_time:.3f} s. The "

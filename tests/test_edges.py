@@ -241,9 +241,9 @@ def test_a_long_run_is_animated_in_a_bounded_number_of_frames(tmp_path, monkeypa
 
 
 def _jump_target(**scale):
-    from torquesim.fitting.target import squat_jump_motion
+    from torquesim.fitting.target import jump_motion
 
-    t = squat_jump_motion()
+    t = jump_motion()
     channels = {k: v * scale.get(k, 1.0) for k, v in t.channels.items()}
     return ts.fitting.Target(t.time * scale.get("time", 1.0), t.angles, t.joints, "x",
                              channels)

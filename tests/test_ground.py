@@ -294,6 +294,37 @@ def test_the_squat_jump_is_a_jump(jump):
     assert abs(apex_from_take_off - c["com_y"].max()) < 1e-5
 
 
+def test_the_countermovement_jump_starts_from_quiet_standing_and_jumps():
+    """Issue 31's countermovement jump: at rest standing upright (the ground carries the
+    weight, every speed zero) until its first ramp (68 ms); a countermovement (the ground force below
+    body weight while the centre of mass falls more than 0.2 m, then above it); a take-off
+    nearly vertical (|v_x| ≤ 0.15 m/s) with a flight of 0.15-0.35 m; no end stop above 5 % of
+    its joint's peak muscle torque; the apex where the take-off speed says."""
+    model = ts.load_model("builtin:countermovement-jump")
+    assert model.duration > 0.9
+    run = ts.simulate(model, "imex", 2.5e-4, check=False)
+    c = run.columns()
+    weight = G * sum(s.total_mass for s in model.segments)
+    still = run.time <= 0.068
+    assert np.allclose(c["grf_y"][still], weight, rtol=1e-6)
+    speeds = run.states[still, model.n_coordinates:2 * model.n_coordinates]
+    assert np.abs(speeds).max() < 1e-6
+    assert abs(math.degrees(c["knee_angle"][0]) - 4.98) < 0.01  # knee and hip nearly straight
+    take_off = int(np.argmax(c["grf_y"] == 0.0))
+    assert 0.6 < run.time[take_off] < 1.0
+    low = int(np.argmin(c["com_y"][:take_off]))
+    assert c["com_y"][0] - c["com_y"][low] > 0.2
+    assert c["grf_y"][:low].min() < 0.6 * weight < 2 * weight < c["grf_y"][low:take_off].max()
+    vy = c["com_speed_y"][take_off]
+    assert 0.15 < vy**2 / (2 * G) < 0.35
+    assert abs(c["com_speed_x"][take_off]) <= 0.15
+    for joint in model.joints[1:]:
+        passive = np.abs(c[f"torque_passive_{joint.name}"]).max()
+        assert passive <= 0.05 * np.abs(c[f"torque_net_{joint.name}"]).max(), joint.name
+    apex_from_take_off = c["com_y"][take_off] + vy**2 / (2 * G)
+    assert abs(apex_from_take_off - c["com_y"].max()) < 1e-4
+
+
 def test_a_passive_body_dropped_loses_energy_only_in_the_contacts():
     """A rigid bar (one free segment, no units) dropped at an angle onto two contacts:
     kinetic + potential + contact spring energy falls exactly by what the contacts' damping

@@ -168,25 +168,26 @@ def raise_hold_lower(joints: dict[str, tuple[float, float]], source: str) -> Tar
     return Target(t, np.array(rows), tuple(joints), source)
 
 
-@lru_cache(maxsize=1)
-def squat_jump_motion(sample_interval: float = 0.005) -> Target:
-    """The preset squat jump simulated with the reference solver (SciPy Radau, rtol 1e-10),
-    sampled at 200 Hz: the four joint angles, the total ground reaction force and the centre
-    of mass, as a force plate and motion capture would record them."""
+@lru_cache(maxsize=2)
+def jump_motion(name: str = "squat-jump", sample_interval: float = 0.005) -> Target:
+    """The preset jump ``name`` simulated with the reference solver (SciPy Radau, rtol
+    1e-10), sampled at 200 Hz: the four joint angles, the total ground reaction force and the
+    centre of mass, as a force plate and motion capture would record them."""
     from ..model.presets import preset
     from ..solvers.simulation import simulate
 
-    model = preset("builtin:squat-jump")
+    model = preset(f"builtin:{name}")
     run = simulate(model, "reference", output_step=sample_interval)
     columns = run.columns()
     joints = tuple(j.name for j in model.joints)
-    return Target(run.time, run.q.T.copy(), joints, "builtin:squat-jump",
-                  {name: columns[name] for name in CHANNELS})
+    return Target(run.time, run.q.T.copy(), joints, f"builtin:{name}",
+                  {channel: columns[channel] for channel in CHANNELS})
 
 
 #: ``builtin:NAME`` targets: the motion of each preset.
 BUILTIN_TARGETS = {
-    "squat-jump": squat_jump_motion,
+    "squat-jump": jump_motion,
+    "countermovement-jump": lambda: jump_motion("countermovement-jump"),
     "curl": min_jerk_curl,
     "elbow-curl": min_jerk_curl,
     "knee-extension": lambda: raise_hold_lower({"knee": (90.0, 15.0)},

@@ -2,7 +2,8 @@
 without loading the model code: the command line's help lists them from here."""
 
 PREFIX = "builtin:"
-PRESET_NAMES = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump")
+PRESET_NAMES = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump",
+                "countermovement-jump")
 
 
 def preset_list() -> str:
