@@ -296,10 +296,10 @@ def test_the_squat_jump_is_a_jump(jump):
 
 def test_the_countermovement_jump_starts_from_quiet_standing_and_jumps():
     """Issue 31's countermovement jump: at rest standing upright (the ground carries the
-    weight, every speed zero) until its first ramp (68 ms); a countermovement (the ground force below
-    body weight while the centre of mass falls more than 0.2 m, then above it); a take-off
-    nearly vertical (|v_x| ≤ 0.15 m/s) with a flight of 0.15-0.35 m; no end stop above 5 % of
-    its joint's peak muscle torque; the apex where the take-off speed says."""
+    weight, every speed zero) until its first ramp (68 ms); a countermovement (the ground
+    force below body weight while the centre of mass falls more than 0.2 m, then above it); a
+    take-off nearly vertical (|v_x| ≤ 0.15 m/s) with a flight of 0.15-0.35 m; no end stop
+    above 5 % of its joint's peak muscle torque; the apex where the take-off speed says."""
     model = ts.load_model("builtin:countermovement-jump")
     assert model.duration > 0.9
     run = ts.simulate(model, "imex", 2.5e-4, check=False)
