@@ -139,6 +139,21 @@ def _stop_at(monkeypatch, module, name, check):
 
 
 @pytest.mark.parametrize("preset", list(PRESETS))
+def test_every_preset_is_a_start_fit_and_optimise_take_as_it_is(preset):
+    """Every unit of every preset has at most the 3 ramps a fit and an optimisation vary, so
+    both start from the preset's own activations (padding with held ramps changes none)."""
+    from torquesim.optimisation.problem import three_ramps
+
+    model = ts.load_model(f"builtin:{preset}")
+    padded = three_ramps(model)
+    levels = model.initial_state().levels
+    t = np.linspace(0.0, model.duration, 201)
+    for unit, again, level in zip(model.units, padded.units, levels, strict=True):
+        assert len(again.activation.ramps) == 3
+        assert np.array_equal(unit.activation(t, level), again.activation(t, level))
+
+
+@pytest.mark.parametrize("preset", list(PRESETS))
 def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, monkeypatch):
     """simulate and model run for real; compare, fit, optimise and batch sweep run their
     defaults' resolution and checks (steps that divide the duration, the fit's step and target,

@@ -225,9 +225,9 @@ def squat_jump() -> ChainModel:
 
 def countermovement_jump() -> ChainModel:
     """A countermovement jump from quiet standing: the squat jump's body, units and contacts,
-    standing still (knee 5°, hip 8° flexed) until 68 ms, lowering itself with its extensors
-    for 0.55 s (the centre of mass 0.25 m down) and pushing off from there with the squat jump's
-    proximal-to-distal push; it leaves the ground at ≈0.79 s (flight ≈0.22 m)."""
+    standing still (knee 5°, hip 8° flexed) until 53 ms, lowering itself with its extensors
+    (the centre of mass 0.27 m down) and pushing off proximal to distal while still
+    descending; it leaves the ground at ≈0.80 s (flight ≈0.19 m)."""
     jump = squat_jump()
     standing = {"foot_ground": 62.28, "ankle": 114.28, "knee": 4.98, "hip": -8.19}  # deg
     joints = tuple(replace(j, initial_angle=math.radians(standing[j.name])) for j in jump.joints)
@@ -235,21 +235,19 @@ def countermovement_jump() -> ChainModel:
     def ramps(*rows: tuple[float, float, float]) -> tuple[Ramp, ...]:
         return tuple(Ramp(*row) for row in rows)
 
-    # (delay after the previous ramp, duration, level): the descent's ramps as fitted, then
-    # the push (to 1, held, off to 0.05) and the antagonists' braces for the flight.
+    # (delay after the previous ramp, duration, level): each extensor falls from its standing
+    # level, rises to full through the braking and the push, and switches off (to 0.05) for
+    # the flight; each antagonist stays at 0.1 until it braces for the flight.
     profiles = {
         "plantarflexors": ActivationProfile(None, ramps(
-            (0.134, 0.158, 0.115), (0.174, 0.073, 0.134),
-            (0.127, 0.05, 1.0), (0.046, 0.05, 0.05))),
-        "dorsiflexors": ActivationProfile(0.1, ramps((0.803, 0.05, 0.331))),
+            (0.577, 0.088, 0.042), (0.0, 0.099, 1.0), (0.048, 0.05, 0.05))),
+        "dorsiflexors": ActivationProfile(0.1, ramps((0.751, 0.05, 0.414))),
         "knee_extensors": ActivationProfile(None, ramps(
-            (0.101, 0.101, 0.032), (0.094, 0.094, 0.031), (0.076, 0.073, 0.269),
-            (0.065, 0.05, 1.0), (0.095, 0.05, 0.05))),
-        "knee_flexors": ActivationProfile(0.1, ramps((0.748, 0.05, 0.479), (0.071, 0.05, 0.1))),
+            (0.175, 0.165, 0.048), (0.172, 0.179, 1.0), (0.063, 0.05, 0.05))),
+        "knee_flexors": ActivationProfile(0.1, ramps((0.719, 0.05, 0.461), (0.1, 0.05, 0.1))),
         "hip_extensors": ActivationProfile(None, ramps(
-            (0.068, 0.128, 0.026), (0.175, 0.102, 0.174), (0.034, 0.032, 0.232),
-            (0.012, 0.05, 1.0), (0.15, 0.05, 0.05))),
-        "hip_flexors": ActivationProfile(0.1, ramps((0.765, 0.05, 0.49), (0.137, 0.05, 0.1))),
+            (0.053, 0.174, 0.019), (0.191, 0.23, 1.0), (0.108, 0.05, 0.05))),
+        "hip_flexors": ActivationProfile(0.1, ramps((0.733, 0.05, 0.37), (0.148, 0.05, 0.1))),
     }
     units = tuple(replace(u, activation=profiles[u.name]) for u in jump.units)
     return jump.replace(
@@ -257,19 +255,20 @@ def countermovement_jump() -> ChainModel:
             *jump.notes[:4],
             "Quiet standing: ankle 114.28 deg (shank 3.4 deg forwards of upright), knee 4.98 "
             "and hip 8.19 deg flexed, the centre of mass 4 cm ahead of the ankle, the units at "
-            "their static levels; the antagonists at 0.1 throughout the descent.",
-            "Descent (from 68 ms): the extensors' ramps fitted by torquesim fit (0.64 deg "
-            "RMS) to a descent designed as each segment's angle by minimum jerk over 0.65 s to "
-            "the squat jump's squat, the centre of mass moving from 4 cm ahead of the ankle to "
-            "above it; the ground force falls to 0.42 body weights and the centre of mass "
-            "drops 0.25 m.",
-            "Push from 0.539 s (still descending): the squat jump's pattern, hip at 12 ms, "
-            "knee at 65 ms, ankle at 127 ms, 50 ms ramps to full activation held 150, 95 and "
-            "46 ms; antagonists braced for the flight from 0.748-0.803 s. Push timings and "
-            "braces chosen by CMA-ES for the highest flight with |v_x| <= 0.1 m/s at take-off "
-            "and no end stop above 4.5 % of its joint's peak torque "
-            "(scripts/tune_countermovement_jump.py makes all three steps).",
-            "The flight (about 0.22 m) is below the squat jump's: without activation dynamics "
+            "their static levels; the antagonists at 0.1 until they brace for the flight.",
+            "Extensors: each falls from its standing level (hip from 53 ms to 0.019, knee from "
+            "175 ms to 0.048, ankle from 577 ms to 0.042), rises to full activation through "
+            "the braking and the push (hip 418-648 ms, knee 512-691 ms, ankle 665-764 ms), "
+            "proximal to distal, and switches off (0.05) in 50 ms 108, 63 and 48 ms later. "
+            "Antagonists braced for the flight from 719-751 ms (knee flexors 0.46, hip flexors "
+            "0.37, dorsiflexors 0.41). Three ramps a unit, as fit and optimise take them. Made "
+            "in steps (scripts/tune_countermovement_jump.py): a descent designed as each "
+            "segment's angle by minimum jerk to the squat jump's squat, fitted by torquesim "
+            "fit with the antagonists at 0.1; the squat jump's push added and tuned by CMA-ES; "
+            "that motion fitted with three ramps a unit; CMA-ES for the highest flight with "
+            "|v_x| <= 0.1 m/s at take-off, the centre of mass at least 0.2 m down and no end "
+            "stop above 4.5 % of its joint's peak torque.",
+            "The flight (about 0.19 m) is below the squat jump's: without activation dynamics "
             "the squat jump's extensors are at full level within 50 ms, so the countermovement "
             "adds no build-up of active state, the main source of the 2-4 cm people gain from "
             "it (Bobbert et al. 1996, Med Sci Sports Exerc 28:1402).",))
