@@ -45,6 +45,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from tune_squat_jump import measure  # scripts/ is on sys.path when this runs
 
 import torquesim as ts
 from torquesim.model.activation import ActivationProfile, Ramp
@@ -165,24 +166,6 @@ def candidate(lowered: ts.ChainModel, x, duration: float = 1.35) -> ts.ChainMode
             profile = ActivationProfile(0.1, tuple(ramps))
         units.append(replace(u, activation=profile))
     return lowered.replace(units=tuple(units), duration=duration)
-
-
-def measure(model) -> dict | None:
-    """Flight (m), forward speed at take-off (m/s), largest end-stop share, the contacts'
-    smallest time constant (ms), landing, the centre of mass's drop (m); None without a
-    take-off."""
-    run = ts.simulate(model, "imex", 2.5e-4, check=False, advise=False, tolerance=None)
-    events = run.ground_events()
-    if events is None or events.take_off is None:
-        return None
-    c = run.columns()
-    i = int(np.searchsorted(run.time, events.take_off))
-    share = max(np.abs(c[f"torque_passive_{j.name}"]).max()
-                / np.abs(c[f"torque_net_{j.name}"]).max() for j in model.joints[1:])
-    return {"take_off_s": events.take_off, "flight_m": events.flight_height,
-            "vx_m_s": float(c["com_speed_x"][i]), "end_stop_share": float(share),
-            "drop_m": float(c["com_y"][0] - c["com_y"][:i].min()), "landing": events.landing,
-            "contact_tau_ms": 1e3 * run.settings.get("contact_time_constant_min_s", 1.0)}
 
 
 def score(model) -> float:

@@ -64,8 +64,10 @@ def candidate(x) -> ts.ChainModel:
 
 
 def measure(model) -> dict | None:
-    """Flight (m), forward speed at take-off (m/s), largest end-stop share, the contacts'
-    smallest time constant (ms), landing; None without a take-off."""
+    """Take-off (s), flight (m), forward speed at take-off (m/s), largest end-stop share,
+    the centre of mass's drop before take-off (m), landing, the contacts' smallest time
+    constant (ms); None without a take-off. (scripts/tune_countermovement_jump.py uses it
+    too.)"""
     run = ts.simulate(model, "imex", 2.5e-4, check=False, advise=False, tolerance=None)
     events = run.ground_events()
     if events is None or events.take_off is None:
@@ -74,8 +76,9 @@ def measure(model) -> dict | None:
     i = int(np.searchsorted(run.time, events.take_off))
     share = max(np.abs(c[f"torque_passive_{j.name}"]).max()
                 / np.abs(c[f"torque_net_{j.name}"]).max() for j in model.joints[1:])
-    return {"flight_m": events.flight_height, "vx_m_s": float(c["com_speed_x"][i]),
-            "end_stop_share": float(share), "landing": events.landing,
+    return {"take_off_s": events.take_off, "flight_m": events.flight_height,
+            "vx_m_s": float(c["com_speed_x"][i]), "end_stop_share": float(share),
+            "drop_m": float(c["com_y"][0] - c["com_y"][:i].min()), "landing": events.landing,
             "contact_tau_ms": 1e3 * run.settings.get("contact_time_constant_min_s", 1.0)}
 
 

@@ -707,3 +707,24 @@ def test_an_initial_speed_out_of_range_in_a_model_file_is_one_line(tmp_path, cap
     assert err.startswith("error: joints[0].initial_speed: 500 is out of range; allowed "
                           "[-100, 100] rad/s"), err
     assert not (tmp_path / "x.csv").exists()
+
+
+@pytest.mark.parametrize("preset", ["squat-jump", "countermovement-jump"])
+def test_a_model_s_own_ramps_as_the_fit_s_start_leave_its_activation_unchanged(preset):
+    """The fit's start from a free body's own ramps (padded to 3 with held ramps) is the
+    model's activation exactly, also for a unit whose profile has no ramps and starts at its
+    static level (before, its padding ramped it to 0)."""
+    from dataclasses import replace
+
+    from torquesim.fitting.parameters import own_vector
+    from torquesim.model.activation import ActivationProfile
+
+    model = ts.load_model(f"builtin:{preset}")
+    first = model.units[0]
+    model = model.replace(units=(replace(first, activation=ActivationProfile(None, ())),
+                                 *model.units[1:]))
+    again = with_ramps(model, own_vector(model), [None] * model.n_units)
+    levels = model.initial_state().levels
+    t = np.linspace(0.0, model.duration, 301)
+    for unit, same, level in zip(model.units, again.units, levels, strict=True):
+        assert np.array_equal(unit.activation(t, level), same.activation(t, level)), unit.name

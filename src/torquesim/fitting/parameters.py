@@ -186,22 +186,29 @@ def vector(profiles) -> np.ndarray:
     return np.array(out)
 
 
+def held_profiles(model, hold: float) -> tuple[ActivationProfile, ...] | None:
+    """Each unit's activation profile padded to `RAMPS_PER_UNIT` ramps with ramps (delay 0,
+    duration ``hold`` s) that hold its last level, so that the activation is unchanged; a
+    unit without ramps holds the level it starts at (its static level for "equilibrium").
+    None when a unit has more ramps than that."""
+    if any(len(u.activation.ramps) > RAMPS_PER_UNIT for u in model.units):
+        return None
+    levels = model.initial_state().levels
+    out = []
+    for unit, start in zip(model.units, levels, strict=True):
+        ramps = unit.activation.ramps
+        last = ramps[-1].level if ramps else float(start)
+        out.append(replace(unit.activation, ramps=tuple(ramps) + (Ramp(0.0, hold, last),) * (
+            RAMPS_PER_UNIT - len(ramps))))
+    return tuple(out)
+
+
 def own_vector(model) -> np.ndarray | None:
-    """``model``'s own activation profiles as the fit's parameter vector: each unit's ramps,
-    padded to `RAMPS_PER_UNIT` with ramps that hold its last level (None when a unit has more
-    ramps than the fit uses)."""
-    profiles = []
-    for unit in model.units:
-        ramps = list(unit.activation.ramps)
-        if len(ramps) > RAMPS_PER_UNIT:
-            return None
-        level = ramps[-1].level if ramps else unit.activation.initial_level
-        if level is None:  # no ramps and the equilibrium level: held at it
-            level = 0.0
-        ramps += [Ramp(0.0, DEFAULT_BOUNDS["duration"][0], level)] * (RAMPS_PER_UNIT
-                                                                      - len(ramps))
-        profiles.append(replace(unit.activation, ramps=tuple(ramps)))
-    return vector(profiles)
+    """``model``'s own activation profiles as the fit's parameter vector (`held_profiles`,
+    held over the shortest default duration; None when a unit has more ramps than the fit
+    uses)."""
+    profiles = held_profiles(model, DEFAULT_BOUNDS["duration"][0])
+    return None if profiles is None else vector(profiles)
 
 
 def with_ramps(model, x, initial_levels) -> object:

@@ -41,11 +41,11 @@ from ..fitting.parameters import (
     RAMP_FIELDS,
     RAMPS_PER_UNIT,
     ParameterSpace,
+    held_profiles,
     vector,
     with_ramps,
 )
 from ..fitting.problem import default_step, fit_step
-from ..model.activation import ActivationProfile, Ramp
 from ..model.body import GROUND_OUTPUTS
 from ..model.chain import ChainModel, as_chain
 from ..solvers import fixed_step as fs
@@ -109,23 +109,19 @@ class Window:
 
 
 def three_ramps(model: ChainModel) -> ChainModel:
-    """``model`` with every unit's activation as exactly 3 ramps: ramps holding the last
-    level (delay 0, `HOLD_RAMP_DURATION`) are appended to a unit with fewer; the activation
-    is unchanged. A unit with more than 3 is a `ModelError`."""
-    levels = model.initial_state().levels
-    units = []
+    """``model`` with every unit's activation as exactly 3 ramps (`held_profiles`, held for
+    `HOLD_RAMP_DURATION`): the activation is unchanged. A unit with more than 3 is a
+    `ModelError`."""
     for u, unit in enumerate(model.units):
-        ramps = unit.activation.ramps
-        if len(ramps) > RAMPS_PER_UNIT:
-            raise ModelError(f"units[{u}].activation.ramps", f"{unit.name} has {len(ramps)} "
-                             f"ramps; allowed: at most {RAMPS_PER_UNIT} (the optimised "
-                             "parameters are 3 ramps per unit)")
-        last = ramps[-1].level if ramps else float(levels[u])
-        held = tuple(Ramp(0.0, HOLD_RAMP_DURATION, last)
-                     for _ in range(RAMPS_PER_UNIT - len(ramps)))
-        units.append(replace(unit, activation=ActivationProfile(
-            unit.activation.initial_level, tuple(ramps) + held)))
-    return model.replace(units=tuple(units))
+        if len(unit.activation.ramps) > RAMPS_PER_UNIT:
+            raise ModelError(f"units[{u}].activation.ramps", f"{unit.name} has "
+                             f"{len(unit.activation.ramps)} ramps; allowed: at most "
+                             f"{RAMPS_PER_UNIT} (the optimised parameters are 3 ramps per "
+                             "unit)")
+    profiles = held_profiles(model, HOLD_RAMP_DURATION)
+    return model.replace(units=tuple(replace(unit, activation=profile)
+                                     for unit, profile in zip(model.units, profiles,
+                                                              strict=True)))
 
 
 def _parameters_of(space: ParameterSpace, path: str, field: str) -> list[str]:
