@@ -677,6 +677,25 @@ def test_a_recording_that_begins_in_motion_starts_the_fit_moving(tmp_path):
     assert np.all(rest.start_speeds() == 0.0)
 
 
+def test_a_simulated_target_that_starts_still_and_accelerates_at_once_starts_at_rest():
+    """A noise-free target that starts at rest with a large acceleration (q = q0 + a·t²/2,
+    a = 2000°/s², as a motion made by another simulator whose muscles are not in equilibrium
+    at t0): its start speed is 0, where a natural smoothing spline (q̈ = 0 at t0) read
+    more than 5°/s."""
+    from torquesim.fitting import Target
+    from torquesim.fitting.target import STILL
+
+    t = np.arange(0.0, 1.0, 0.01)
+    q = np.radians(10.0 + 0.5 * 2000.0 * t**2 / (1.0 + 20.0 * t**2))
+    exact = Target(t, q[None, :], ("elbow",), "accelerating")
+    assert not exact.noisy()[0]
+    from scipy.interpolate import make_smoothing_spline
+
+    natural = make_smoothing_spline(t[:40], q[:40]).derivative()(0.0)
+    assert abs(natural) > STILL  # what the earlier estimate read
+    assert np.all(exact.start_speeds() == 0.0)
+
+
 def test_a_free_body_started_moving_keeps_its_loaded_contacts_still():
     """The squat jump with its knee and hip moving at the start: the base moves so that the
     loaded toe and heel start at (least-squares) zero velocity; at rest nothing moves."""

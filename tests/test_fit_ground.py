@@ -161,6 +161,11 @@ def test_channels_on_a_body_without_them_are_one_line_errors(jump, target, tmp_p
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "grf_y" in err and "fixed base" in err
     assert not out.exists()
+    # a force column in the file, not asked for: refused too (it was silently ignored)
+    assert main(["fit", "--target", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds grf_y" in err and "fixed base" in err
+    assert not out.exists()
     with pytest.raises(ts.ModelError, match="channel 'grf_z'"):
         Target(t, t[None], ("elbow",), "x", {"grf_z": t})
     with pytest.raises(ts.ModelError, match="weight_grf"):

@@ -90,27 +90,32 @@ class Target:
     def smoothed(self, row: int = 0, samples: int | None = None):
         """A smoothing spline q(t − t0) through row ``row``'s samples (the first ``samples``
         of them; default all; smoothing chosen by generalised cross-validation: exact data are
-        nearly interpolated, noisy data are smoothed); ``.derivative(n)`` gives q̇ and q̈."""
+        nearly interpolated, noisy data are smoothed; natural: q̈ = 0 at both ends);
+        ``.derivative(n)`` gives q̇ and q̈."""
         from scipy.interpolate import make_smoothing_spline
 
         return make_smoothing_spline(self.elapsed[:samples], self.angles[row, :samples])
 
-    def start_angles(self) -> np.ndarray:
-        """Each joint's angle at the first sample, rad: for a recording with noise the value
-        at t0 of the smoothing spline of `smoothed` (a value the first frames agree on); for
-        a noise-free one (a simulated target) the first sample itself. The noise is judged on
-        the first 12 samples: the median |third difference| / (0.6745·√20), the standard
-        deviation of white noise (a smooth motion's third differences are h³ times its jerk,
-        next to nothing), above `NOISE_FREE`. A standing body's equilibrium is
-        sensitive to the start: 0.3° of noise in the first sample tipped the feet of
-        examples/jump from 61.9° to 54.8°."""
-        start = self.angles[:, 0].copy()
+    def noisy(self) -> np.ndarray:
+        """Which joints' first samples carry noise (a recording) rather than none (a simulated
+        target): the median |third difference| of the first 12 samples / (0.6745·√20), the
+        standard deviation of white noise (a smooth motion's third differences are h³ times
+        its jerk, next to nothing), above `NOISE_FREE`. One flag per joint."""
         if self.time.size < 5:
-            return start
+            return np.zeros(len(self.joints), dtype=bool)
         first = self.angles[:, :12]
         noise = np.median(np.abs(np.diff(first, n=3, axis=1)), axis=1) / (0.6745
                                                                           * math.sqrt(20))
-        for row in np.flatnonzero(noise > NOISE_FREE):
+        return noise > NOISE_FREE
+
+    def start_angles(self) -> np.ndarray:
+        """Each joint's angle at the first sample, rad: for a recording with noise (`noisy`)
+        the value at t0 of the smoothing spline of `smoothed` (a value the first frames agree
+        on); for a noise-free one (a simulated target) the first sample itself. A standing
+        body's equilibrium is sensitive to the start: 0.3° of noise in the first sample
+        tipped the feet of examples/jump from 61.9° to 54.8°."""
+        start = self.angles[:, 0].copy()
+        for row in np.flatnonzero(self.noisy()):
             try:
                 start[row] = float(self.smoothed(int(row))(0.0))
             except (ValueError, np.linalg.LinAlgError):
@@ -118,17 +123,27 @@ class Target:
         return start
 
     def start_speeds(self) -> np.ndarray:
-        """Each joint's angular velocity at the first sample, rad/s: the derivative at t0 of a
-        smoothing spline (as `smoothed`) through the first `START_WINDOW` samples (a second-
-        order one-sided difference if the spline cannot be made, e.g. exact data sampled
-        densely); all zero when every joint moves slower than `STILL` there (a recording that
-        starts still: the fit starts at rest, in static equilibrium)."""
+        """Each joint's angular velocity at the first sample, rad/s, from its first
+        `START_WINDOW` samples: for a recording with noise (`noisy`) the derivative at t0 of
+        a smoothing spline (as `smoothed`); for a noise-free one the derivative of the
+        interpolating cubic spline (not-a-knot ends). The smoothing spline is natural
+        (q̈ = 0 at t0), which a simulated motion that starts still with a large acceleration
+        does not obey: on such a target it read 23°/s where the motion starts at rest. A
+        second-order one-sided difference where no spline can be made. All zero when every
+        joint moves slower than `STILL` there (a recording that starts still: the fit starts
+        at rest, in static equilibrium)."""
+        from scipy.interpolate import CubicSpline
+
         if self.time.size < 5:
             return np.zeros(len(self.joints))
+        noisy = self.noisy()
         speeds = np.empty(len(self.joints))
         for row in range(len(self.joints)):
             try:
-                speeds[row] = float(self.smoothed(row, START_WINDOW).derivative()(0.0))
+                spline = (self.smoothed(row, START_WINDOW) if noisy[row] else
+                          CubicSpline(self.elapsed[:START_WINDOW],
+                                      self.angles[row, :START_WINDOW]))
+                speeds[row] = float(spline.derivative()(0.0))
             except (ValueError, np.linalg.LinAlgError):
                 speeds[row] = float(np.gradient(self.angles[row, :3], self.elapsed[:3],
                                                 edge_order=2)[0])
@@ -369,6 +384,13 @@ def load_target(spec: str, model=None, columns=None, units: str | None = None) -
             raise ModelError("column", f"{', '.join(c for c in columns if c in CHANNELS)}: "
                              f"only a body on the ground has them; {chain.name!r} hangs "
                              "from a fixed base; allowed: JOINT=COLUMN")
+        else:
+            held = [n for n in names if n.lower() in CHANNELS]
+            if held:
+                raise ModelError("target", f"{Path(spec).name} holds {', '.join(held)}, "
+                                 f"which only a body on the ground has; {chain.name!r} "
+                                 "hangs from a fixed base; allowed: joint angles only "
+                                 "(remove or rename those columns)")
         read = [c for j, c in mapping.items() if j not in expressions]
         read += [n for coefficients, _ in expressions.values() for n in coefficients
                  if n not in absent]
