@@ -244,6 +244,7 @@ def test_a_long_run_is_animated_in_a_bounded_number_of_frames(tmp_path, monkeypa
     import torquesim.plots as plots
 
     monkeypatch.setattr(plots, "MAX_FRAMES", 12)
+    monkeypatch.setattr(plots, "MIN_PLAYING_TIME", 0.4)
     run = ts.simulate(ts.default_model(), "imex", 5e-3, duration=6.0)
     path = tmp_path / "long.gif"
     plots.animate_result(run, path)

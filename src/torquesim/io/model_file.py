@@ -24,7 +24,9 @@ A chain model (docs/model-files.md)::
     [[units]]
     name = "shoulder_flexor"
     joint = "shoulder"
-    direction = "flexor"     # or "extensor" (+1 / -1)
+    positive = "flexion"     # what a growing angle is (default flexion; the jump's hip:
+                             # extension, its ankle: plantarflexion)
+    direction = "flexor"     # or "extensor" (+1 / -1: towards the joint's positive way)
     isometric_torque = 60.0 ...  # every TorqueGeneratorUnit field
     [units.activation]
     initial_level = "equilibrium"   # or a number in [0, 1]
@@ -47,7 +49,8 @@ from pathlib import Path
 from ..errors import ModelError
 from ..model.activation import ActivationDynamics, ActivationProfile, Ramp
 from ..model.body import BodyParameters
-from ..model.chain import ChainModel, Joint, PointLoad, Segment, Unit
+from ..model.chain import OPPOSITE_MOTIONS as OPPOSITE
+from ..model.chain import POSITIVE_MOTIONS, ChainModel, Joint, PointLoad, Segment, Unit
 from ..model.contact import GroundContact, Point
 from ..model.elbow import ElbowModel
 from ..model.torque_generator import TorqueGeneratorUnit
@@ -65,13 +68,15 @@ FIELD_DOCS = {
     "com_distance": "m, proximal joint to centre of mass. [0, 10]",
     "inertia_about_joint": "kg m^2, about the proximal joint, loads excluded. (0, 1e4]",
     "length": "m, proximal joint to the next joint. [0, 10]",
-    "initial_angle": "rad, 0 = straight/hanging, positive = flexion. [-pi, pi]",
+    "initial_angle": "rad, 0 = straight/hanging, positive = the joint's positive motion "
+                     "(default flexion). [-pi, pi]",
     "initial_speed": "rad/s, joint angular velocity at t = 0 (0 = at rest). [-100, 100]",
     "endstop_torque": "N m, passive end-stop scale k_p (0 = none). [0, 1e5]",
     "endstop_angle_scale": "rad, end-stop angular scale s_p. (0, inf)",
     "endstop_lower_angle": "rad, q_lo. [-pi, 2pi]",
     "endstop_upper_angle": "rad, q_hi (> q_lo). [-pi, 2pi]",
     "coordinate": "output column / OpenSim coordinate name",
+    "positive": "what a growing angle is: " + ", ".join(POSITIVE_MOTIONS),
     "isometric_torque": "N m, T0. (0, 1e4]",
     "eccentric_torque_max": "N m, T_max. (T0, 10 T0]",
     "max_velocity": "rad/s, omega_max. (0, 200]",
@@ -103,7 +108,8 @@ POINT_KEYS = ("name", "segment", "distance", "offset")
 CONTACT_KEYS = ("point", "stiffness", "exponent", "damping", "friction", "slip_speed")
 LOAD_KEYS = ("name", "mass", "distance", "inertia")
 JOINT_KEYS = ("name", "initial_angle", "endstop_torque", "endstop_angle_scale",
-              "endstop_lower_angle", "endstop_upper_angle", "coordinate", "initial_speed")
+              "endstop_lower_angle", "endstop_upper_angle", "coordinate", "initial_speed",
+              "positive")
 UNIT_KEYS = ("name", "joint", "direction", "activation", "activation_dynamics",
              *TorqueGeneratorUnit.field_names())
 DYNAMICS_KEYS = ("activation_time", "deactivation_time")
@@ -269,9 +275,8 @@ def _contact(i: int, table: dict) -> GroundContact:
 def _joint(i: int, table: dict) -> Joint:
     prefix = f"joints[{i}]"
     _check_keys(prefix, table, JOINT_KEYS, ("name", "initial_angle"))
-    values = {key: (_text if key in ("name", "coordinate") else _number)(f"{prefix}.{key}",
-                                                                         value)
-              for key, value in table.items()}
+    values = {key: (_text if key in ("name", "coordinate", "positive") else _number)(
+        f"{prefix}.{key}", value) for key, value in table.items()}
     try:
         return Joint(**values)
     except ModelError as exc:
@@ -382,12 +387,22 @@ def _line(key: str, value) -> str:
     return f"{key} = {_value(value)}" + (f"  # {doc}" if doc else "")
 
 
+def _direction_line(unit, positive: str) -> str:
+    """A unit's direction: "flexor"/"extensor" at a joint whose positive way is flexion, else
+    +1/−1 with the motion it pulls towards (the jump's hip extensors pull +1, extension)."""
+    if positive == "flexion":
+        return f"direction = {_value('flexor' if unit.direction == 1 else 'extensor')}"
+    return (f"direction = {unit.direction}  # {'+' if unit.direction == 1 else '-'}1: pulls "
+            f"towards {unit.joint} {positive if unit.direction == 1 else OPPOSITE[positive]}")
+
+
 def model_to_toml(model) -> str:
     """The model (chain or elbow) as commented TOML in the chain layout (exact float round
     trip)."""
     from ..model.chain import as_chain
 
     m = as_chain(model)
+    positive = {j.name: j.positive for j in m.joints}
     lines = ["# torquesim model: a planar chain. SI units, angles in radians.",
              "# Format: docs/model-files.md. Sources of the values: the notes below."]
     lines += [f"# {note}" for note in m.notes]
@@ -412,14 +427,16 @@ def model_to_toml(model) -> str:
         lines += ["", "[[joints]]", f"name = {_value(joint.name)}",
                   _line("initial_angle", joint.initial_angle)
                   + f" (= {math.degrees(joint.initial_angle):.4g} deg)"]
-        lines += [_line(k, getattr(joint, k)) for k in JOINT_KEYS[2:-1]]
+        lines += [_line(k, getattr(joint, k)) for k in JOINT_KEYS[2:-2]]
         if joint.initial_speed:
             lines.append(_line("initial_speed", joint.initial_speed)
                          + f" (= {math.degrees(joint.initial_speed):.4g} deg/s)")
+        if joint.positive != "flexion":
+            lines.append(_line("positive", joint.positive))
     for unit in m.units:
         lines += ["", "[[units]]", f"name = {_value(unit.name)}",
                   f"joint = {_value(unit.joint)}",
-                  f"direction = {_value('flexor' if unit.direction == 1 else 'extensor')}"]
+                  _direction_line(unit, positive[unit.joint])]
         lines += [_line(k, v) for k, v in unit.parameters.as_dict().items()]
         profile = unit.activation
         lines += ["[units.activation]",

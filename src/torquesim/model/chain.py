@@ -223,6 +223,16 @@ class Segment:
         return out
 
 
+#: What a joint's growing angle can be, as a biomechanist names it (`Joint.positive`).
+POSITIVE_MOTIONS = ("flexion", "extension", "dorsiflexion", "plantarflexion", "abduction",
+                    "adduction", "counterclockwise")
+#: The motion opposite each one (a shrinking angle).
+OPPOSITE_MOTIONS = {"flexion": "extension", "extension": "flexion",
+                    "dorsiflexion": "plantarflexion", "plantarflexion": "dorsiflexion",
+                    "abduction": "adduction", "adduction": "abduction",
+                    "counterclockwise": "clockwise"}
+
+
 @dataclass(frozen=True)
 class Joint:
     """A hinge joint and its passive end stops (docs/model.md §1 form).
@@ -233,7 +243,8 @@ class Joint:
     ----------
     name : str
     initial_angle : float
-        q at t = 0, rad (0 = straight in line with the previous segment, positive = flexion).
+        q at t = 0, rad (0 = straight in line with the previous segment; positive: see
+        ``positive``).
         Bounds [-π, π].
     endstop_torque : float
         k_p, N·m. Default 1.0. Bounds [0, inf); 0 = no end stops.
@@ -247,6 +258,13 @@ class Joint:
     initial_speed : float
         q̇ at t = 0, rad/s (a start in motion, e.g. a recording that begins mid-movement).
         Default 0 (at rest). Bounds [-100, 100].
+    positive : str
+        The anatomical motion a growing angle is, one of `POSITIVE_MOTIONS`: the joint's
+        positive way for its angle, speed and net and passive torques, and the way a unit
+        with direction +1 pulls. Default ``"flexion"``; the jump's hip ``"extension"``
+        (relative angles of a planar chain all turn counterclockwise, so hip flexion and
+        knee flexion cannot both be positive), its ankle ``"plantarflexion"``, the free
+        root's absolute angle ``"counterclockwise"``.
     """
 
     name: str
@@ -257,9 +275,13 @@ class Joint:
     endstop_upper_angle: float = 2.618
     coordinate: str = ""
     initial_speed: float = 0.0
+    positive: str = "flexion"
 
     def __post_init__(self) -> None:
         check_name("name", self.name)
+        if self.positive not in POSITIVE_MOTIONS:
+            raise ModelError("positive", f"{self.positive!r}; allowed: "
+                             + ", ".join(POSITIVE_MOTIONS))
         check_range("initial_angle", self.initial_angle, -math.pi, math.pi, unit="rad")
         check_range("initial_speed", self.initial_speed, -100.0, 100.0, unit="rad/s")
         check_range("endstop_torque", self.endstop_torque, 0.0, 1e5, unit="N·m")
@@ -280,6 +302,11 @@ class Joint:
             raise ModelError("coordinate", f"{self.coordinate!r} would clash with another "
                              "output column; allowed: a name other than time and not starting "
                              "with torque_, activation_, excitation_, omega_cc_ or theta_cc_")
+
+    @property
+    def negative(self) -> str:
+        """The motion a shrinking angle is (the opposite of ``positive``)."""
+        return OPPOSITE_MOTIONS[self.positive]
 
     def endstop_array(self) -> np.ndarray:
         """[k_p, s_p, q_lo, q_hi] in the layout of `torquesim.model.body.passive_torque`."""

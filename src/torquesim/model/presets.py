@@ -161,13 +161,15 @@ def squat_jump() -> ChainModel:
     joints = (
         Joint("foot_ground", initial_angle=phi[0], endstop_torque=0.0,
               endstop_lower_angle=-math.pi, endstop_upper_angle=2 * math.pi,
-              coordinate="foot_angle"),
+              coordinate="foot_angle", positive="counterclockwise"),
         Joint("ankle", initial_angle=phi[1] - phi[0], endstop_lower_angle=0.5,
-              endstop_upper_angle=3.0, coordinate="ankle_angle", **stops),
+              endstop_upper_angle=3.0, coordinate="ankle_angle", positive="plantarflexion",
+              **stops),
         Joint("knee", initial_angle=phi[2] - phi[1], endstop_lower_angle=0.0,
               endstop_upper_angle=2.6, coordinate="knee_angle", **stops),
         Joint("hip", initial_angle=phi[3] - phi[2], endstop_lower_angle=-2.6,
-              endstop_upper_angle=0.3, coordinate="hip_angle", **stops),
+              endstop_upper_angle=0.3, coordinate="hip_angle", positive="extension",
+              **stops),
     )
 
     def push(delay: float, hold: float) -> ActivationProfile:
