@@ -137,11 +137,12 @@ def test_a_cold_start_is_announced_when_compiling_begins():
     disk nothing is said."""
     from numba import njit
 
-    from torquesim.cli import COMPILING_NOTICE, CompileReporter
+    from torquesim.cli import CompileReporter
 
     lines = []
     with CompileReporter(echo=lines.append) as reporter:
         reporter.listen()
+        COMPILING_NOTICE = reporter.notice
 
         @njit
         def fresh(x):  # not cached: calling it compiles
@@ -158,6 +159,37 @@ def test_a_cold_start_is_announced_when_compiling_begins():
         assert lines == [COMPILING_NOTICE]  # once per command
     fresh(2)  # a new signature compiles, but the reporter is closed
     assert lines == [COMPILING_NOTICE]
+
+
+def test_the_compile_notice_names_what_compiles_and_that_other_kinds_compile_later(
+        monkeypatch):
+    """The notice names the technique and the kind of model being compiled and says that
+    other techniques and models compile on their first run (it said "once per install",
+    then came back for 8 of the tutorial's first commands)."""
+    import click
+
+    import torquesim.solvers as solvers
+    from torquesim.cli import COMPILING_NOTICE, CompileReporter, model_kind
+    from torquesim.errors import SimulationError
+
+    seen = []
+    monkeypatch.setattr(CompileReporter, "on_start",
+                        lambda self, _event=None: seen.append(self.notice))
+
+    def compile_then_stop(*args, **kwargs):  # a run that begins by compiling
+        click.get_current_context().find_root().obj.on_start()
+        raise SimulationError("stopped")
+
+    monkeypatch.setattr(solvers, "simulate", compile_then_stop)
+    assert main(["simulate", "--model", "builtin:squat-jump", "--method", "imex",
+                 "--step", "0.25ms"]) == 1
+    assert seen == [COMPILING_NOTICE.format(
+        subject="the imex technique for a free body on 2 ground contacts (squat-jump)")]
+    assert "once per technique and kind of model" in seen[0]
+    assert "other techniques and models compile on their first run" in seen[0]
+    assert "once per install," not in seen[0]
+    assert model_kind(ts.load_model("builtin:arm-raise")) == "a 2-joint chain (arm-raise)"
+    assert model_kind(ts.default_model()).startswith("a one-joint chain (elbow")
 
 
 def test_a_warm_run_says_nothing_about_compiling(capsys):
@@ -219,12 +251,15 @@ def test_model_plot_draws_the_chain_and_the_unit_curves(tmp_path, capsys):
     assert "--out" in capsys.readouterr().err
 
 
-def test_simulate_animates_the_motion_as_a_stick_figure(tmp_path, capsys):
-    """25 frames per simulated second, the stick figure at the simulated angles."""
+def test_simulate_animates_the_motion_as_a_stick_figure(tmp_path, capsys, monkeypatch):
+    """25 frames per simulated second (played in real time once no slow motion is asked
+    for), the stick figure at the simulated angles."""
     from PIL import Image
 
+    import torquesim.plots as plots
     from torquesim.plots import segment_lines
 
+    monkeypatch.setattr(plots, "MIN_PLAYING_TIME", 0.4)
     gif = tmp_path / "curl.gif"
     assert main(["simulate", "--duration", "0.4", "--animate", str(gif)]) == 0
     with Image.open(gif) as im:
@@ -245,7 +280,7 @@ def test_a_long_compile_reports_every_interval_until_done():
     none once it has ended, and the notice only once."""
     import time
 
-    from torquesim.cli import COMPILING_NOTICE, CompileReporter
+    from torquesim.cli import CompileReporter
 
     def wait_for(count, lines, limit=10.0):  # polls: a loaded machine may be slow
         end = time.monotonic() + limit
@@ -255,6 +290,7 @@ def test_a_long_compile_reports_every_interval_until_done():
 
     lines = []
     with CompileReporter(interval=0.2, echo=lines.append) as reporter:
+        COMPILING_NOTICE = reporter.notice
         reporter.on_start()
         reporter.on_start()  # a nested compile (a callee)
         reporter.on_end()

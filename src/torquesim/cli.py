@@ -176,6 +176,7 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     fixed = method != "reference"
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
     _announce_size(model, method, step, duration, out_path)
+    compiling_for(f"the {method} technique for {model_kind(model)}")
     result = run(model, method, step, duration=duration, tolerance=check if fixed else None)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
@@ -251,13 +252,43 @@ LARGE_TABLE_BYTES = 200e6
 #: While a command compiles, a line at least this often (s), so that a log is never silent
 #: for longer.
 COMPILE_REPORT_INTERVAL = 10.0
-#: The one line said when a command starts compiling (only on an empty Numba cache).
-COMPILING_NOTICE = ("compiling the integrators with Numba (once per install, up to a minute; "
-                    "later runs start in seconds) ...")
+#: The one line said when a command starts compiling (only when Numba's cache on disk lacks
+#: what it runs): what is compiled and that other kinds of run compile their own code.
+COMPILING_NOTICE = ("compiling {subject} with Numba: once per technique and kind of model on "
+                    "this install (10-60 s); later runs of this kind start in seconds, other "
+                    "techniques and models compile on their first run ...")
+#: What a command compiles, until it says (`compiling_for`).
+DEFAULT_SUBJECT = "the integrators this command runs"
+
+
+def model_kind(model) -> str:
+    """The kind of model a compiled step loop is made for, as the compile notice names it."""
+    from .model.chain import as_chain
+
+    model = as_chain(model)
+    if model.contacts:
+        kind = f"a free body on {len(model.contacts)} ground contacts"
+    elif model.base == "free":
+        kind = "a free body"
+    else:
+        kind = (f"a {model.n_joints}-joint chain" if model.n_joints > 1 else
+                "a one-joint chain")
+    if any(u.activation_dynamics is not None for u in model.units):
+        kind += " with activation dynamics"
+    return f"{kind} ({model.name})"
+
+
+def compiling_for(subject: str) -> None:
+    """Name what the current command compiles, for the compile notice."""
+    context = click.get_current_context(silent=True)
+    reporter = context.find_root().obj if context is not None else None
+    if isinstance(reporter, CompileReporter):
+        reporter.subject = subject
 
 
 class CompileReporter:
-    """Tells the user when Numba compiles: `COMPILING_NOTICE` on stderr when a command first
+    """Tells the user when Numba compiles: `COMPILING_NOTICE` (naming the ``subject`` a
+    command set with `compiling_for`) on stderr when a command first
     compiles (not before: bad input fails without it; nothing when every kernel is on disk),
     then "still compiling (N s)" every ``interval`` s while that compiling goes on. It listens
     to Numba's "numba:compile" events, which fire only for a compile (a cache miss), and
@@ -266,6 +297,7 @@ class CompileReporter:
 
     def __init__(self, interval: float = COMPILE_REPORT_INTERVAL, echo=None,
                  quiet: bool = False):
+        self.subject = DEFAULT_SUBJECT
         self.interval = interval
         self.echo = echo or (lambda text: click.echo(text, err=True))
         self.quiet = quiet
@@ -282,8 +314,13 @@ class CompileReporter:
         if self.depth == 1:
             self.burst_start = time.monotonic()
             if self.thread is None and not self.quiet:
-                self.echo(COMPILING_NOTICE)
+                self.echo(self.notice)
                 self.thread = self._start_watching()
+
+    @property
+    def notice(self) -> str:
+        """`COMPILING_NOTICE` for what this command compiles."""
+        return COMPILING_NOTICE.format(subject=self.subject)
 
     def on_end(self, _event=None) -> None:
         self.depth = max(self.depth - 1, 0)
@@ -587,6 +624,7 @@ def compare(model_path, steps, repeats, out_dir, vary, quiet):
     from .study.outputs import write_study
 
     model = load_model(model_path)
+    compiling_for(f"every technique of the study for {model_kind(model)}")
     values = default_steps(model) if steps is None else _parse_steps(steps)
     for h in values:
         step_count(model.duration, h, "--steps")
@@ -820,6 +858,8 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
 
     out = _search_folder(out_dir, resume, overwrite, FIT_FILES, "fit")
     base = load_model(model_path)
+    compiling_for(f"the fit's runs (IMEX, and Radau for the re-simulation) for "
+                  f"{model_kind(base)}")
     if target_spec is None:
         own = model_path.removeprefix("builtin:")
         if not model_path.startswith("builtin:") or own not in BUILTIN_TARGETS:
@@ -1192,6 +1232,8 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
         raise ModelError("--maximise", "no goal given; allowed: --maximise GOAL or "
                          "--minimise GOAL, e.g. --minimise time_to:elbow=90deg")
     model = load_model(model_path)
+    compiling_for(f"the optimiser's runs ({method}, and Radau for the check) for "
+                  f"{model_kind(model)}")
     if duration is not None:
         from .errors import check_range
 
