@@ -248,13 +248,14 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     if chunk is not None:
         _whole_number("--chunk", chunk, 1, 1_000_000)
     check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
-    chain = as_chain(load_model(model) if isinstance(model, str | Path) else model)
-    n_steps = step_count(chain.duration, step, "--step")
     if isinstance(vary, str | Distribution):
         vary = [vary]
+    # the distributions first: they need no model, whose checks may compile
     distributions = [d if isinstance(d, Distribution) else parse_vary(d) for d in vary]
     if not distributions:
         raise ModelError("--vary", "nothing to vary; allowed: one or more PATH=KIND(...)")
+    chain = as_chain(load_model(model) if isinstance(model, str | Path) else model)
+    n_steps = step_count(chain.duration, step, "--step")
     paths = [d.path for d in distributions]
     for d in distributions:  # every path and a typical value checked before any work
         typical = d.a if d.kind != "uniform" else 0.5 * (d.a + d.b)
