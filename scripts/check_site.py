@@ -203,15 +203,30 @@ def cli_reference_problems(html: str) -> list[str]:
     return bad
 
 
+def html_text(html: str) -> str:
+    """The text of an HTML fragment: tags dropped, entities decoded, spaces collapsed."""
+    import html as entities
+
+    return re.sub(r"\s+", " ", entities.unescape(re.sub(r"<[^>]+>", " ", html)))
+
+
 def api_reference_problems(html: str) -> list[str]:
-    """Names in the API reference's code that do not exist: a ``torquesim.…`` path that does
-    not resolve, an ``--option`` no command has."""
+    """Names in the API reference that do not exist (a ``torquesim.…`` path in code that does
+    not resolve, an ``--option`` in code or text that no command has) and raw reST left in
+    its text (double backticks: a docstring section the renderer did not parse)."""
     import importlib
 
     page = _Cells()
     page.feed(html)
     options = {o for opts in _commands().values() for p in opts for o in p.opts}
     bad = []
+    prose = html_text(re.sub(r"<(pre|script|style)\b.*?</\1>", " ", html, flags=re.DOTALL))
+    for raw in dict.fromkeys(re.findall(r"``[^`]{0,60}``", prose)):
+        bad.append(f"api: raw reST {raw} in the text (a docstring section numpydoc did not "
+                   "parse, e.g. an attribute without its type line)")
+    for option in dict.fromkeys(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", prose)):
+        if option not in options:
+            bad.append(f"api: {option} is not an option of any command")
     for text in dict.fromkeys(page.codes):
         if re.fullmatch(r"--[a-z][a-z0-9-]*", text) and text not in options:
             bad.append(f"api: {text} is not an option of any command")
@@ -228,7 +243,7 @@ def api_reference_problems(html: str) -> list[str]:
                 except AttributeError:
                     bad.append(f"api: {text} does not exist")
                 break
-    return bad
+    return list(dict.fromkeys(bad))
 
 
 class _Quiet(http.server.SimpleHTTPRequestHandler):

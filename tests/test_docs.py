@@ -88,6 +88,14 @@ def test_the_site_checker_reads_the_reference_pages_against_the_code():
         "<code>torquesim.solvers.nothing</code><code>torquesim.model.presets.preset</code>"
     ) == ["api: --techniques is not an option of any command",
           "api: torquesim.solvers.nothing does not exist"]
+    # in the text too, and raw reST a renderer left (an attribute section without types put
+    # its descriptions in the Type column as ``code``); not in code blocks or styles
+    assert api_reference_problems(
+        "<table><tr><td>name</td><td>the name in ``--techniques``; see compare --vary</td>"
+        "</tr></table><pre>x = ``kept``</pre><style>:root{--md-text-font:x}</style>"
+    ) == ["api: raw reST ``--techniques`` in the text (a docstring section numpydoc did not "
+          "parse, e.g. an attribute without its type line)",
+          "api: --techniques is not an option of any command"]
 
 
 def test_the_study_page_holds_its_generated_blocks():
@@ -113,3 +121,32 @@ def test_the_stated_spread_of_the_optima_holds_what_it_says():
         digits = 1 if unit == "ms" else 2
         assert (f"{found['low'] * scale:.{digits}f}–{found['high'] * scale:.{digits}f} {unit} "
                 "across BLAS kernels") in page
+
+
+def test_the_readme_names_every_dependency_and_the_docs_only_versions_that_exist():
+    """Every package pyproject.toml installs (and the test extra) is named in the README's
+    list (cmaes was missing); the package's version is the CHANGELOG's newest release and the
+    citation's; a "torquesim ≥ X" in the docs names a release no newer than it (model.md
+    said ≥ 0.3 of a 0.2.0 package)."""
+    import re
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    readme = (ROOT / "README.md").read_text()
+    listed = readme[readme.index("Dependencies (all installed"):][:1200].lower()
+    for requirement in project["dependencies"] + project["optional-dependencies"]["test"]:
+        name = re.split(r"[<>=\[ ]", requirement)[0].lower()
+        assert name in listed, f"README's dependency list does not name {name}"
+    version = project["version"]
+    changelog = (ROOT / "CHANGELOG.md").read_text()
+    newest = re.search(r"^## (\S+) \(", changelog, re.MULTILINE).group(1)
+    assert newest == version
+    assert f"version: {version}" in (ROOT / "CITATION.cff").read_text()
+    assert f"version {version}," in (ROOT / "docs" / "references.md").read_text()
+
+    def parts(text):
+        return tuple(int(x) for x in text.split("."))
+
+    for page in [ROOT / "README.md", *(ROOT / "docs").glob("*.md")]:
+        for found in re.findall(r"torquesim ≥ ([0-9.]+)", page.read_text()):
+            assert parts(found) <= parts(version)[:len(parts(found))], (page.name, found)

@@ -30,15 +30,23 @@ class Technique:
 
     Attributes
     ----------
-    name : the name in tables, figures and ``--techniques`` (e.g. ``partitioned[linear]``).
-    method : the ``method`` argument of `simulate`.
-    coupling : the ``coupling`` argument of `simulate` (partitioned and IMEX), else None.
-    parts : how the body (q, q̇) and muscle (θ_cc) equations are integrated, in words.
-    order : global order of accuracy on smooth problems (declared; measured by the tests);
-        None for the adaptive solvers.
-    implicit : which part is solved implicitly: "none", "muscles" or "all".
-    in_study : run by ``torquesim compare`` by default.
-    headline : named in the one-line summaries of ``compare --vary``.
+    name : str
+        The name in tables, figures and the study's results (e.g. ``partitioned[linear]``).
+    method : str
+        The ``method`` argument of `simulate`.
+    coupling : Coupling or None
+        The ``coupling`` argument of `simulate` (partitioned and IMEX), else None.
+    parts : str
+        How the body (q, q̇) and muscle (θ_cc) equations are integrated, in words.
+    order : int or None
+        Global order of accuracy on smooth problems (declared; measured by the tests); None
+        for the adaptive solvers.
+    implicit : str
+        Which part is solved implicitly: "none", "muscles" or "all".
+    in_study : bool
+        Run by ``torquesim compare`` by default.
+    headline : bool
+        Named in the one-line summaries of ``compare --vary``.
     """
 
     name: str
