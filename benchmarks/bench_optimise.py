@@ -30,7 +30,9 @@ Prints, on this machine (compilation is done before any timing):
    compares a regenerated optimum.
 
 With ``--write-docs`` the results go into the ``optimise-benchmark`` block of
-docs/optimise.md (with the date and load) and the spread into its JSON file.
+docs/optimise.md (with the date and load) and the spread into its JSON file. With
+``--figures`` the curl's and the plain jump's start-and-optimum figures (as ``optimise.png``
+draws them) are written to docs/figures/optimise_curl.png and optimise_jump.png.
 """
 
 from __future__ import annotations
@@ -72,6 +74,7 @@ def curl() -> None:
           f"faster); {best.outcome.simulations} simulations; wall "
           f"{', '.join(f'{w:.2f}' for w in walls)} s (min {min(walls):.2f} s)")
     RESULTS["curl"] = (goal, best.outcome.simulations, min(walls))
+    RESULTS["curl_best"] = best
 
 
 def jump() -> None:
@@ -100,6 +103,28 @@ def jump() -> None:
               f"{copies[label][0] * 100:.2f} cm; failed copies {len(failed)}"
               + (f" ({'; '.join(copies[label][2])})" if failed else ""))
     RESULTS["jump"] = (rows, copies)
+    RESULTS["jump_best"] = rows["plain"][0]
+
+
+def figures() -> None:
+    """docs/figures/optimise_{curl,jump}.png: start (dashed) and optimum (solid) of the curl
+    and the plain jump, as `torquesim optimise` draws them (reference solver)."""
+    from torquesim.plots import plot_comparison, save_figure
+
+    folder = Path(__file__).resolve().parent.parent / "docs" / "figures"
+    for case, label in (("curl", "time to 90°"), ("jump", "jump height")):
+        best = RESULTS.get(f"{case}_best")
+        if best is None:
+            continue
+        runs = best.summary["_runs"]
+        goal = best.summary["goals"][0]
+        scale, unit = (1e3, "ms") if case == "curl" else (1e2, "cm")
+        title = (f"torquesim optimise {best.summary['model']}: {label} "
+                 f"{goal['reference_start'] * scale:.1f} → {goal['reference_optimum'] * scale:.1f}"
+                 f" {unit} (reference solver)")
+        save_figure(plot_comparison(runs["start"], runs["optimum"], title=title),
+                    folder / f"optimise_{case}.png")
+        print(f"wrote docs/figures/optimise_{case}.png")
 
 
 #: OpenBLAS kernel sets tried for the spread (those this CPU cannot run are skipped).
@@ -285,6 +310,8 @@ def main() -> None:
                         help="comma-separated: curl, jump, cluster, spread")
     parser.add_argument("--write-docs", action="store_true",
                         help="write the results into docs/optimise.md")
+    parser.add_argument("--figures", action="store_true",
+                        help="write the curl's and the jump's figures into docs/figures/")
     args = parser.parse_args()
     skip = set(args.skip.split(","))
     load = os.getloadavg()[0]
@@ -299,6 +326,8 @@ def main() -> None:
     if "spread" not in skip:
         spread()
     print(f"load average at end: {os.getloadavg()[0]:.2f}")
+    if args.figures:
+        figures()
     if args.write_docs:
         write_blocks("docs/optimise.md", {"optimise-benchmark": docs_block(load)})
         if "spread_json" in RESULTS:

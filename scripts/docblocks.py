@@ -21,7 +21,7 @@ BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)"
 PAGES = {
     "docs/study.md": {"study-verdict", "study-limits", "default-checks", "jump-verdict",
                       "jump-limits", "jump-stiffness"},
-    "docs/validation.md": {"validation-figures"},
+    "docs/validation.md": {"validation-figures", "validation-ground"},
     "docs/fitting.md": {"fit-benchmark", "jump-unseen"},
     "docs/optimise.md": {"optimise-benchmark"},
     "docs/batch.md": {"batch-benchmark"},
@@ -30,6 +30,8 @@ PAGES = {
     "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",
                         "motion-squat-jump", "motion-countermovement-jump"},
     "docs/model.md": {"contacts-squat-jump"},
+    "README.md": {"test-suite"},
+    "docs/index.md": {"test-suite"},
 }
 #: The presets whose motion `preset_motion_blocks` describes, in page order.
 MOTION_PRESETS = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump",

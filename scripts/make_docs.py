@@ -8,7 +8,8 @@
                                            # and that the optima of docs/optimise.md regenerate
                                            # within their stated spread (~1 min)
     python scripts/make_docs.py --jump     # only the study on the squat jump (~3 min)
-    python scripts/make_docs.py --presets  # only the presets' motions (docs/presets.md)
+    python scripts/make_docs.py --presets  # only the presets' motions (docs/presets.md), their
+                                           # conventions figures and the jumps' result figures
 
 Runs ``torquesim compare`` on the default curl into a temporary folder, copies its figures to
 ``docs/figures/`` and rewrites the blocks of ``docs/study.md`` between
@@ -215,6 +216,24 @@ def conventions_figures() -> None:
         print(f"wrote {path.relative_to(ROOT)}")
 
 
+#: The jumps drawn as `simulate --plot` draws them, with the technique and step the tutorial
+#: uses (IMEX, 0.25 ms).
+JUMP_FIGURES_OF = ("squat-jump", "countermovement-jump")
+
+
+def jump_figures() -> None:
+    """docs/figures/result_<jump>.png: each jump as ``torquesim simulate --model builtin:NAME
+    --method imex --step 0.25ms --plot`` draws it (strobe, forces, centre of mass, joints)."""
+    import torquesim as ts
+    from torquesim.plots import plot_result, save_figure
+
+    for name in JUMP_FIGURES_OF:
+        run = ts.simulate(ts.load_model(f"builtin:{name}"), "imex", 0.25e-3)
+        path = ROOT / "docs" / "figures" / f"result_{name.replace('-', '_')}.png"
+        save_figure(plot_result(run), path)
+        print(f"wrote {path.relative_to(ROOT)}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
@@ -225,7 +244,8 @@ def main() -> None:
     parser.add_argument("--jump", action="store_true",
                         help="only the study on the squat jump")
     parser.add_argument("--presets", action="store_true",
-                        help="only the presets' motions of docs/presets.md")
+                        help="only the presets' motions of docs/presets.md, their conventions "
+                             "figures and the jumps' result figures")
     parser.add_argument("--skip-optima", action="store_true",
                         help="with --check: do not regenerate the optima of docs/optimise.md")
     args = parser.parse_args()
@@ -259,6 +279,7 @@ def main() -> None:
             sys.exit("\n".join(problems))
     if args.presets:
         conventions_figures()
+        jump_figures()
     if args.check or args.presets:
         return
     from torquesim.cli import main as torquesim

@@ -13,6 +13,12 @@ Writes into docs/figures/:
   solver's mass matrix) beside the work the contractile elements did, and their difference.
 - ``validation_reference.png``: the default curl with every technique at its default step
   against the converged Radau solution (rtol 1e-11): the error over time.
+- ``validation_jump.png``: the squat jump (monolithic RK4, 12.5 µs, as tests/test_ground.py):
+  the impulse of the ground force beyond body weight against the change of momentum, and in
+  flight the centre of mass's acceleration against −g.
+- ``validation_drop.png``: a rigid bar dropped onto two contacts (tests/test_ground.py): its
+  energy (kinetic, gravity, contact springs) plus what the contacts' damping and friction
+  dissipated, against its energy at the start.
 
 Prints the largest difference of each and writes the figures with their captions and these
 numbers into the ``validation-figures`` block of docs/validation.md.
@@ -36,6 +42,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 from tests.conftest import ce_power, chain_energy  # noqa: E402
 from tests.test_chain import chain, sympy_rhs, torquesim_rhs  # noqa: E402
+from tests.test_ground import dropped_bar, dropped_bar_energy  # noqa: E402
 
 import torquesim as ts  # noqa: E402
 
@@ -44,6 +51,11 @@ ALT_SYMPY = ("Joint angles of a 3-segment chain under prescribed joint torques, 
              "and from an independent sympy model, and their difference on a log scale.")
 ALT_ENERGY = ("Change of the total energy of the default curl beside the work of the "
               "contractile elements, and their difference.")
+ALT_JUMP = ("Impulse of the ground force beyond body weight against the change of momentum "
+            "over the squat jump, and the centre of mass's acceleration in flight against -g.")
+ALT_DROP = ("Energy of a rigid bar dropped onto two contacts plus what the contacts "
+            "dissipated, against its energy at the start.")
+G = 9.81
 ALT_REFERENCE = ("Error of the elbow angle against the converged Radau solution over time for "
                  "monolithic RK4, partitioned RK4 and IMEX.")
 
@@ -124,6 +136,62 @@ def reference_figure() -> dict[str, float]:
     return worst
 
 
+def jump_figure() -> tuple[float, float, float]:
+    """The squat jump's momentum books and flight: the largest |impulse − m·Δv_y| (N·s), the
+    largest change of momentum (N·s) and the largest |a_com + g| in flight (m/s²)."""
+    run = ts.simulate(ts.load_model("builtin:squat-jump"), "monolithic", 1.25e-5)
+    c = run.columns()
+    mass = sum(s.total_mass for s in run.model.segments)
+    net = c["grf_y"] - mass * G
+    impulse = np.concatenate([[0.0], np.cumsum(0.5 * (net[1:] + net[:-1]) * run.step)])
+    change = mass * (c["com_speed_y"] - c["com_speed_y"][0])
+    air = np.flatnonzero(c["grf_y"] == 0.0)
+    flight = slice(air[0] + 1, air[-1])
+    accel = np.diff(c["com_speed_y"])[flight] / run.step
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
+    a.plot(run.time, impulse, color="k", lw=2.5, label="∫(F_y − m·g) dt")
+    a.plot(run.time, change, color="tab:orange", ls="--", label="m·(v_y − v_y,0)")
+    a.axvline(run.time[air[0]], color="tab:red", ls=":", label="take-off")
+    a.set(xlabel="time (s)", ylabel="N·s", title="impulse = change of momentum")
+    a.legend(fontsize=8)
+    twin = a.twinx()
+    twin.semilogy(run.time, np.abs(impulse - change) + 1e-16, color="tab:grey", lw=0.8)
+    twin.set_ylabel("|difference| (N·s)", color="tab:grey")
+    b.plot(run.time[1:][flight], accel + G, color="k")
+    b.set(xlabel="time (s)", ylabel="a_com,y + g (m/s²)")
+    b.set_title("flight: the centre of mass falls at g", pad=16)
+    b.ticklabel_format(axis="y", style="sci", scilimits=(0, 0))
+    for ax in (a, b):
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(FIGURES / "validation_jump.png", dpi=110)
+    plt.close(fig)
+    return (float(np.max(np.abs(impulse - change))), float(np.abs(change).max()),
+            float(np.max(np.abs(accel + G))))
+
+
+def drop_figure() -> tuple[float, float, float]:
+    """The dropped bar's energy books: the largest |E + dissipated − E0| (J), E0 (J) and the
+    energy dissipated (J)."""
+    run, contacts = dropped_bar()
+    energy, dissipated = dropped_bar_energy(run, contacts)
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
+    a.plot(run.time, energy, color="tab:blue", label="E: kinetic + gravity + contact springs")
+    a.plot(run.time, dissipated, color="tab:orange", label="dissipated by damping, friction")
+    a.plot(run.time, energy + dissipated, color="k", lw=2, label="E + dissipated")
+    a.set(xlabel="time (s)", ylabel="J", title="a rigid bar dropped onto two contacts")
+    a.legend(fontsize=8)
+    b.semilogy(run.time, np.abs(energy + dissipated - energy[0]) + 1e-16, color="k")
+    b.set(xlabel="time (s)", ylabel="|E + dissipated − E(0)| (J)", title="the books balance")
+    for ax in (a, b):
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(FIGURES / "validation_drop.png", dpi=110)
+    plt.close(fig)
+    return (float(np.max(np.abs(energy + dissipated - energy[0]))), float(energy[0]),
+            float(dissipated[-1]))
+
+
 def main() -> None:
     FIGURES.mkdir(parents=True, exist_ok=True)
     print(f"load average {os.getloadavg()[0]:.2f}")
@@ -136,6 +204,12 @@ def main() -> None:
     for label, error in worst.items():
         print(f"{label}: max |Δq| against Radau {error:.2g} rad ({np.degrees(error):.2g} deg)")
     mono, part, imex = worst.values()
+    books, momentum, fall = jump_figure()
+    print(f"squat jump: max |impulse - m dv| {books:.2g} N s of {momentum:.1f} N s; "
+          f"flight max |a + g| {fall:.2g} m/s^2")
+    drop, start, lost = drop_figure()
+    print(f"dropped bar: max |E + dissipated - E0| {drop:.2g} J of {start:.2f} J "
+          f"({lost:.2f} J dissipated)")
     block = f"""The figures are drawn by `python scripts/validation_figures.py` from the same
 independent implementations the tests use; it also writes the numbers in these captions.
 
@@ -158,8 +232,26 @@ stays within {mono:.2g} rad, IMEX at 1 ms within {imex:.2g} rad; plain partition
 0.1 ms is off by up to {part:.2g} rad ({np.degrees(part):.1f}°), the failure the
 [study](study.md) measures, and the run warns about it.*
 """
-    write_blocks("docs/validation.md", {"validation-figures": block})
-    print("wrote docs/figures/validation_{sympy,energy,reference}.png")
+    ground = f"""The figures are drawn by `python scripts/validation_figures.py` (the same runs
+the tests make).
+
+![{ALT_JUMP}](figures/validation_jump.png)
+
+*The squat jump, monolithic RK4 at 12.5 µs: the impulse of the ground force beyond body weight
+equals the change of the body's momentum to {books:.2g} N·s ({books / momentum:.1e} of the
+{momentum:.0f} N·s it gains; the test asks 1e-6); in flight the centre of mass accelerates at
+−g to {fall:.1g} m/s² (the test asks 1e-7).*
+
+![{ALT_DROP}](figures/validation_drop.png)
+
+*A 5 kg bar dropped from 20 cm, tilted and moving sideways, onto Hunt-Crossley contacts with
+friction (monolithic RK4 at 10 µs): of its {start:.2f} J, {lost:.2f} J are dissipated by the
+contacts' damping and friction, and energy plus dissipation stay within {drop:.2g} J of the
+start ({drop / start:.1e}; the test asks 1e-4).*
+"""
+    write_blocks("docs/validation.md", {"validation-figures": block,
+                                        "validation-ground": ground})
+    print("wrote docs/figures/validation_{sympy,energy,reference,jump,drop}.png")
 
 
 if __name__ == "__main__":
