@@ -428,7 +428,6 @@ def draw_strobe(ax, result, poses: int = 10) -> None:
     ax.set_aspect("equal")
     ax.set_ylim(-0.3, float(lines[..., 1].max()) + 0.1)
     ax.set_xlim(drift[0] - 1.3 * step, drift[0] + (len(picks) - 0.4) * step)
-    ax.set_yticks([0.0, 0.5, 1.0, 1.5, 2.0][:int(lines[..., 1].max() / 0.5) + 2])
     ax.set_ylabel("y (m)")
     ax.set_xticks([])
     ax.set_title("stick figures in time (light to dark), each drawn to the right of the one "

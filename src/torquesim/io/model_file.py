@@ -19,13 +19,13 @@ A chain model (docs/model-files.md)::
     [[joints]]               # one per segment, same order
     name = "shoulder"
     initial_angle = 0.1      # rad
+    positive = "flexion"     # what a growing angle is (default flexion; the jump's hip:
+                             # extension, its ankle: plantarflexion)
     endstop_torque = 1.0 ...
 
     [[units]]
     name = "shoulder_flexor"
     joint = "shoulder"
-    positive = "flexion"     # what a growing angle is (default flexion; the jump's hip:
-                             # extension, its ankle: plantarflexion)
     direction = "flexor"     # or "extensor" (+1 / -1: towards the joint's positive way)
     isometric_torque = 60.0 ...  # every TorqueGeneratorUnit field
     [units.activation]
