@@ -425,9 +425,9 @@ def draw_strobe(ax, result, poses: int = 10) -> None:
                     arrowprops={"arrowstyle": "-|>", "color": "tab:green", "lw": 1.6})
         ax.text(x0 - 0.05, 0.5 * FORCE_ARROW_SCALE, "ground force:\n1 body weight",
                 ha="right", va="center", fontsize="small", color="tab:green")
-    ax.set_aspect("equal")
     ax.set_ylim(-0.3, float(lines[..., 1].max()) + 0.1)
-    ax.set_xlim(drift[0] - 1.3 * step, drift[0] + (len(picks) - 0.4) * step)
+    ax.set_xlim(drift[0] - 1.6 * step, drift[0] + (len(picks) - 0.4) * step)
+    ax.set_aspect("equal")
     ax.set_ylabel("y (m)")
     ax.set_xticks([])
     ax.set_title("stick figures in time (light to dark), each drawn to the right of the one "
@@ -446,8 +446,8 @@ def plot_jump(result, poses: int = 10):
     events = result.ground_events()
     acting = [j for j in model.joints if any(u.joint == j.name for u in model.units)]
     rows = 2 + len(acting)
-    fig = _figure(figsize=(13.2, 2.7 * len(acting) + 7.6))
-    grid = fig.add_gridspec(rows, 3, height_ratios=(1.9, 1.0, *[1.0] * len(acting)))
+    fig = _figure(figsize=(13.2, 2.7 * len(acting) + 6.6))
+    grid = fig.add_gridspec(rows, 3, height_ratios=(1.2, 1.0, *[1.0] * len(acting)))
     draw_strobe(fig.add_subplot(grid[0, :]), result, poses)
     first = fig.add_subplot(grid[1, 0])
     axes = [[first, fig.add_subplot(grid[1, 1], sharex=first),
