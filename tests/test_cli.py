@@ -190,6 +190,22 @@ def test_the_compile_notice_names_what_compiles_and_that_other_kinds_compile_lat
     assert "once per install," not in seen[0]
     assert model_kind(ts.load_model("builtin:arm-raise")) == "a 2-joint chain (arm-raise)"
     assert model_kind(ts.default_model()).startswith("a one-joint chain (elbow")
+    # a command names what it compiles as it goes: the model's checks, then the loop; a
+    # compile of the same subject says nothing more
+    monkeypatch.undo()
+    lines = []
+    with CompileReporter(echo=lines.append) as reporter:
+        reporter.subject = "the model's checks (builtin:squat-jump)"
+        reporter.on_start()
+        reporter.on_end()
+        reporter.subject = "the imex technique for a free body"
+        reporter.on_start()
+        reporter.on_end()
+        reporter.on_start()
+        reporter.on_end()
+    assert [line.split(" with Numba")[0] for line in lines] == [
+        "compiling the model's checks (builtin:squat-jump)",
+        "compiling the imex technique for a free body"]
 
 
 def test_a_warm_run_says_nothing_about_compiling(capsys):

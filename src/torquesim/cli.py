@@ -169,6 +169,7 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     _check_distinct_outputs({"--out": out_path, "--out's manifest": out_path and
                              f"{out_path}.manifest.json", "--plot": plot_path,
                              "--animate": animation_path, "--grf": grf_path})
+    compiling_for(f"the model's checks ({model_path})")
     model = load_model(model_path)
     if grf_path and not model.contacts:
         raise ModelError("--grf", f"{model.name} has no ground contacts; allowed: a model "
@@ -258,7 +259,7 @@ COMPILING_NOTICE = ("compiling {subject} with Numba: once per technique and kind
                     "this install (10-60 s); later runs of this kind start in seconds, other "
                     "techniques and models compile on their first run ...")
 #: What a command compiles, until it says (`compiling_for`).
-DEFAULT_SUBJECT = "the integrators this command runs"
+DEFAULT_SUBJECT = "the model's checks and the integrators this command runs"
 
 
 def model_kind(model) -> str:
@@ -288,7 +289,8 @@ def compiling_for(subject: str) -> None:
 
 class CompileReporter:
     """Tells the user when Numba compiles: `COMPILING_NOTICE` (naming the ``subject`` a
-    command set with `compiling_for`) on stderr when a command first
+    command set with `compiling_for`; again when a later compile has another subject, e.g.
+    the model's checks, then the technique's loop) on stderr when a command first
     compiles (not before: bad input fails without it; nothing when every kernel is on disk),
     then "still compiling (N s)" every ``interval`` s while that compiling goes on. It listens
     to Numba's "numba:compile" events, which fire only for a compile (a cache miss), and
@@ -298,6 +300,7 @@ class CompileReporter:
     def __init__(self, interval: float = COMPILE_REPORT_INTERVAL, echo=None,
                  quiet: bool = False):
         self.subject = DEFAULT_SUBJECT
+        self.announced = None  # the subject the notice last named
         self.interval = interval
         self.echo = echo or (lambda text: click.echo(text, err=True))
         self.quiet = quiet
@@ -313,9 +316,11 @@ class CompileReporter:
         self.depth += 1
         if self.depth == 1:
             self.burst_start = time.monotonic()
-            if self.thread is None and not self.quiet:
-                self.echo(self.notice)
-                self.thread = self._start_watching()
+            if not self.quiet and self.subject != self.announced:
+                self.echo(self.notice)  # once per subject: a command names what it compiles
+                self.announced = self.subject
+                if self.thread is None:
+                    self.thread = self._start_watching()
 
     @property
     def notice(self) -> str:
@@ -623,6 +628,7 @@ def compare(model_path, steps, repeats, out_dir, vary, quiet):
     from .study.compare import default_steps, verdict, verdict_sentences
     from .study.outputs import write_study
 
+    compiling_for(f"the model's checks ({model_path})")
     model = load_model(model_path)
     compiling_for(f"every technique of the study for {model_kind(model)}")
     values = default_steps(model) if steps is None else _parse_steps(steps)
@@ -857,6 +863,7 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
     from .io.model_file import load_model
 
     out = _search_folder(out_dir, resume, overwrite, FIT_FILES, "fit")
+    compiling_for(f"the model's checks ({model_path})")
     base = load_model(model_path)
     compiling_for(f"the fit's runs (IMEX, and Radau for the re-simulation) for "
                   f"{model_kind(base)}")
@@ -1231,6 +1238,7 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
     if not maximise and not minimise:
         raise ModelError("--maximise", "no goal given; allowed: --maximise GOAL or "
                          "--minimise GOAL, e.g. --minimise time_to:elbow=90deg")
+    compiling_for(f"the model's checks ({model_path})")
     model = load_model(model_path)
     compiling_for(f"the optimiser's runs ({method}, and Radau for the check) for "
                   f"{model_kind(model)}")
