@@ -337,6 +337,11 @@ def segment_lines(model, coordinates) -> np.ndarray:
 FORCE_ARROW_SCALE = 0.25
 
 
+def joints_with_units(model) -> list:
+    """The joints a result figure gives a row: those with units (a free root has none)."""
+    return [j for j in model.joints if any(u.joint == j.name for u in model.units)]
+
+
 def outlines(model) -> list[tuple[int, list[int]]]:
     """Segments drawn as outlines through their points: (segment index, point indices by
     distance along the axis) for each segment with a point off its axis (the jump's foot:
@@ -444,7 +449,7 @@ def plot_jump(result, poses: int = 10):
     model = result.model
     t = cols["time"]
     events = result.ground_events()
-    acting = [j for j in model.joints if any(u.joint == j.name for u in model.units)]
+    acting = joints_with_units(model)
     rows = 2 + len(acting)
     fig = _figure(figsize=(13.2, 2.7 * len(acting) + 6.6))
     grid = fig.add_gridspec(rows, 3, height_ratios=(1.2, 1.0, *[1.0] * len(acting)))
@@ -724,7 +729,7 @@ def plot_comparison(start, optimum, *, title: str = "", poses: int = 8):
     time (light to dark)."""
     model = optimum.model
     ground = bool(model.contacts)
-    acting = [j for j in model.joints if any(u.joint == j.name for u in model.units)]
+    acting = joints_with_units(model)
     n = len(acting)
     import matplotlib
 
