@@ -1,7 +1,7 @@
-"""The package's layers hold: errors < model < solvers < study/fitting/batch < cli, the
-side-by-side layers borrowing nothing from each other; files through io; figures only in the
-plotting modules; no import circle. Every import statement is read, function-level ones
-included."""
+"""The package's layers hold: errors < model < solvers < study/fitting/batch < optimisation
+< cli, the side-by-side layers borrowing nothing from each other; files through io; figures
+only in the plotting modules; no import circle. Every import statement is read,
+function-level ones included, and every subpackage has its entry."""
 
 import ast
 from pathlib import Path
@@ -12,17 +12,20 @@ PACKAGE = Path(__file__).resolve().parent.parent / "src" / "torquesim"
 #: Subpackage → the torquesim subpackages it must not import.
 #: ``errors`` is the bottom (every layer raises its errors); ``plots`` draws what the model,
 #: solvers and io give it and nothing above; study, fitting and batch sit side by side and do
-#: not borrow from each other (batch runs fits, so it may use fitting).
-EVERYTHING = {"model", "solvers", "study", "fitting", "io", "cli", "plots", "batch"}
+#: not borrow from each other (batch runs fits, so it may use fitting); optimisation shares
+#: the fit's population kernel and ramps and runs on batch's workers.
+EVERYTHING = {"model", "solvers", "study", "fitting", "io", "cli", "plots", "batch",
+              "optimisation"}
 FORBIDDEN = {
     "errors": EVERYTHING,
-    "model": {"solvers", "study", "fitting", "io", "cli", "plots", "batch"},
-    "solvers": {"study", "fitting", "io", "cli", "plots", "batch"},
-    "io": {"solvers", "study", "fitting", "cli", "plots", "batch"},
-    "plots": {"study", "fitting", "batch", "cli"},
-    "study": {"cli", "fitting", "batch"},
-    "fitting": {"cli", "study", "batch"},
-    "batch": {"cli", "study"},
+    "model": {"solvers", "study", "fitting", "io", "cli", "plots", "batch", "optimisation"},
+    "solvers": {"study", "fitting", "io", "cli", "plots", "batch", "optimisation"},
+    "io": {"solvers", "study", "fitting", "cli", "plots", "batch", "optimisation"},
+    "plots": {"study", "fitting", "batch", "cli", "optimisation"},
+    "study": {"cli", "fitting", "batch", "optimisation"},
+    "fitting": {"cli", "study", "batch", "optimisation"},
+    "batch": {"cli", "study", "optimisation"},
+    "optimisation": {"cli", "study"},
 }
 PLOTTING = {"plots.py", "study/report.py", "batch/report.py"}
 
@@ -60,6 +63,13 @@ def test_imports_respect_the_layers(path):
         assert inner not in FORBIDDEN.get(layer, set()), f"{rel} imports torquesim.{inner}"
         if top == "matplotlib":
             assert rel.as_posix() in PLOTTING, f"{rel} imports Matplotlib"
+
+
+def test_every_subpackage_has_its_layer():
+    """A new subpackage gets an entry (optimisation had none, so nothing was checked)."""
+    subpackages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
+    assert subpackages <= FORBIDDEN.keys()
+    assert subpackages | {"cli", "plots"} == EVERYTHING
 
 
 def test_the_layer_check_sees_function_level_imports(tmp_path):

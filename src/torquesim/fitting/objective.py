@@ -1,4 +1,8 @@
-"""The fit's objective, compiled: simulate candidates in parallel and return their residuals.
+"""The population kernel and the fit's objective, compiled.
+
+`simulate_population` simulates a population of candidate activation ramps in parallel
+threads: the one kernel of fits and optimisations. `population_residuals` turns a fit's
+simulated population into residual vectors, also in parallel.
 
 The residual vector r of a candidate (all angles in degrees, times in s) has, for every scored
 joint j with weight w_j (weights sum to 1) and target sample k = 1…K,
@@ -31,6 +35,9 @@ from ..solvers import fixed_step as fs
 from ..solvers.rates import unit_excitation
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
+#: Candidates simulated per compiled call (bounds the memory of the stored motions:
+#: 64 × steps × state size numbers).
+POPULATION_CHUNK = 64
 #: Score of a candidate whose simulation failed or broke the stability guard, deg.
 FAILED_SCORE = 1.0e4
 PROFILE_SIZE = 2 + 3 * RAMPS_PER_UNIT
@@ -92,63 +99,79 @@ def sample_joint(states, step, times, joint, n, theta_out, omega_out):
         omega_out[k] = (1.0 - u) * om0 + u * om1
 
 
+@njit(cache=True, parallel=True, error_model="numpy")
+def simulate_population(population, loop, coupling, y0, step, n_steps, seg, joints, units,
+                        levels, explicit_muscles, ground_steps, states, activations, outputs,
+                        status):
+    """Simulate every row of ``population`` (m × 9U ramp vectors, `fitting.parameters`) with
+    the step loop the switches ``loop`` choose (`fixed_step.step_loop_switches`), unit u
+    starting at ``levels[u]``. Fills, per candidate j: ``states[j]`` (steps + 1 rows of y),
+    ``status[j]`` (`run_status`), the profiles' values at the first
+    ``activations.shape[2]`` steps into ``activations[j]`` (units × those steps; none for a
+    fit, every step for an optimisation) and, for a body on the ground, its
+    `GROUND_OUTPUTS` at the steps ``ground_steps`` (indices) into those columns of
+    ``outputs[j]`` (4 × steps + 1).
+
+    The parameter arrays are copied per candidate: candidates run in parallel threads, and
+    the step loops' reference counting on arrays shared between threads would contend
+    (measured: the population scored 2.3x slower)."""
+    n = joints.shape[0]
+    for j in prange(population.shape[0]):
+        seg_j, joints_j, units_j = seg.copy(), joints.copy(), units.copy()
+        y0_j, coupling_j = y0.copy(), coupling.copy()
+        profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
+        for u in range(levels.shape[0]):
+            pack_profile(population[j], u * PER_UNIT, levels[u], profiles[u])
+        stats = np.zeros(fs.STATS_SIZE)
+        fs.run_step_loop(*loop, y0_j, step, n_steps, seg_j, joints_j, units_j, profiles,
+                         coupling_j, states[j], stats)
+        flat = profiles.ravel()
+        for u in range(levels.shape[0]):
+            for k in range(activations.shape[2]):
+                activations[j, u, k] = unit_excitation(k * step, flat, PROFILE_SIZE, u)
+        status[j] = run_status(stats, explicit_muscles)
+        if ground_steps.shape[0] > 0 and status[j] == RUN_OK:
+            _ground_outputs_of_run(states[j], ground_steps, n, seg_j, joints_j.ravel(),
+                                   outputs[j], loop[fs.SWITCH_FREE_BASE],
+                                   loop[fs.SWITCH_TREE])
+
+
 @njit(cache=True, error_model="numpy")
-def simulate_candidate(x, loop, coupling, y0, step, n_steps, seg, joints, units, levels,
-                       explicit_muscles, times, scored, theta_out, omega_out, profiles,
-                       channels, channel_out):
-    """Simulate the ramp vector ``x`` (9 per unit) on the packed chain with the step loop the
-    switches ``loop`` choose (a tuple, `fixed_step.step_loop_switches`), unit u starting at
-    ``levels[u]``; fill q, q̇ of the ``scored`` coordinates at ``times`` (rows of
-    ``theta_out``, ``omega_out``), the ground outputs ``channels`` (indices into
-    `GROUND_OUTPUTS`; rows of ``channel_out``) and the packed ``profiles``. True if the run
-    is usable (finite, not diverged, contacts within the RK4 stability limit, and units too
-    when explicit).
-
-    The parameter arrays are copied first: candidates run in parallel threads, and the step
-    loops' reference counting on arrays shared between threads would contend (measured: the
-    population scored 2.3x slower).
-    """
-    seg, joints, units, y0, coupling = seg.copy(), joints.copy(), units.copy(), y0.copy(), \
-        coupling.copy()
-    n = joints.shape[0]  # coordinates (the joint array has a row per coordinate)
-    for u in range(levels.shape[0]):
-        pack_profile(x, u * PER_UNIT, levels[u], profiles[u])
-    states = np.empty((n_steps + 1, y0.shape[0]))
-    stats = np.zeros(fs.STATS_SIZE)
-    fs.run_step_loop(*loop, y0, step, n_steps, seg, joints, units, profiles, coupling, states,
-                     stats)
-    if run_status(stats, explicit_muscles) != RUN_OK:
-        return False
-    for r in range(scored.shape[0]):
-        sample_joint(states, step, times, scored[r], n, theta_out[r], omega_out[r])
-    if channels.shape[0] > 0:
-        sample_ground_outputs(states, step, times, n, seg, joints, channels, channel_out,
-                              loop[fs.SWITCH_FREE_BASE], loop[fs.SWITCH_TREE])
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def sample_ground_outputs(states, step, times, n, seg, joints, channels, out, free_base, tree):
-    """The ground outputs ``channels`` (`GROUND_OUTPUTS` indices) at ``times`` (s from the
-    start) from fixed-step states, linear between the values at the steps around each time
-    (``joints``: the 2-D joint rows). ``free_base`` and ``tree``: the body's switches
-    (`body_switches`); with free_base None (no ground) nothing is compiled or done."""
+def _ground_outputs_of_run(states, rows, n, seg, joints, out, free_base, tree):
+    """`GROUND_OUTPUTS` at the ``rows`` of ``states`` into those columns of ``out``
+    (4 × rows of states); ``free_base`` and ``tree`` the body's switches (`body_switches`):
+    with free_base None (no ground) nothing is compiled or done."""
     if free_base is not None:
-        joints = joints.ravel()
         work = np.zeros(body_work_size(n, seg))
         torque = np.zeros(n)
-        before = np.empty(4)
-        after = np.empty(4)
-        last = states.shape[0] - 1
-        for k in range(times.shape[0]):
-            s = times[k] / step
-            i = min(int(s), last - 1)
-            u = s - i
-            ground_outputs(states[i], n, seg, joints, torque, work, before, tree)
-            ground_outputs(states[i + 1], n, seg, joints, torque, work, after, tree)
-            for r in range(channels.shape[0]):
-                c = channels[r]
-                out[r, k] = (1.0 - u) * before[c] + u * after[c]
+        values = np.empty(4)
+        for r in range(rows.shape[0]):
+            k = rows[r]
+            ground_outputs(states[k], n, seg, joints, torque, work, values, tree)
+            for c in range(4):
+                out[c, k] = values[c]
+
+
+def steps_around(times, step: float, n_steps: int) -> np.ndarray:
+    """The step indices `sample_joint` and `sample_outputs` read at ``times`` (s from the
+    start): the steps before and after each time."""
+    below = np.minimum((np.asarray(times) / step).astype(np.int64), n_steps - 1)
+    return np.unique(np.concatenate([below, below + 1]))
+
+
+@njit(cache=True, error_model="numpy")
+def sample_outputs(outputs, step, times, channels, out):
+    """The ground outputs ``channels`` (`GROUND_OUTPUTS` indices, rows of ``outputs``, one
+    column per step) at ``times`` (s from the start), linear between the steps around each
+    time, into the rows of ``out``."""
+    last = outputs.shape[1] - 1
+    for k in range(times.shape[0]):
+        s = times[k] / step
+        i = min(int(s), last - 1)
+        u = s - i
+        for r in range(channels.shape[0]):
+            c = channels[r]
+            out[r, k] = (1.0 - u) * outputs[c, i] + u * outputs[c, i + 1]
 
 
 @njit(cache=True, error_model="numpy")
@@ -197,28 +220,33 @@ def residual_size(n_rows: int, n_samples: int, n_units: int, weight_velocity: fl
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def residual_population(population, loop, coupling, y0, step, n_steps, seg, joints, units,
-                        levels, rests, explicit_muscles, times, scored, target_theta,
-                        target_omega, weights, weight_velocity, weight_end, weight_effort,
-                        channels, target_channels, channel_scales, residuals, failed):
+def population_residuals(population, levels, states, outputs, status, step, n, rests,
+                         times, scored, target_theta, target_omega, weights, weight_velocity,
+                         weight_end, weight_effort, channels, target_channels,
+                         channel_scales, residuals, failed):
     """Residuals (rows of ``residuals``) and failure flags of every row of ``population``
-    (m × 9U), simulated in parallel threads with the step loop chosen by the switches ``loop``
-    (`fixed_step.step_loop_switches`): only that loop is compiled into this function."""
+    (m × 9U) from its run by `simulate_population` (``states`` of a body of ``n``
+    coordinates, ground ``outputs`` and ``status``): q and q̇ of the ``scored`` coordinates
+    at the target ``times`` by
+    `sample_joint`, the ground outputs ``channels`` by `sample_outputs`, the activations from
+    the candidate's ramps (`pack_profile`, unit u starting at ``levels[u]``)."""
     n_rows, n_samples = target_theta.shape
     failed_value = FAILED_SCORE / math.sqrt(residuals.shape[1])
     for j in prange(population.shape[0]):
-        theta = np.empty((n_rows, n_samples))
-        omega = np.empty((n_rows, n_samples))
-        profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
-        values = np.empty((channels.shape[0], n_samples))
-        ok = simulate_candidate(population[j], loop, coupling, y0, step, n_steps, seg, joints,
-                                units, levels, explicit_muscles, times, scored, theta, omega,
-                                profiles, channels, values)
-        if ok:
-            fill_residual(theta, omega, target_theta, target_omega, weights, weight_velocity,
-                          weight_end, weight_effort, profiles, rests, times, values,
-                          target_channels, channel_scales, residuals[j])
-            failed[j] = False
-        else:
+        if status[j] != RUN_OK:
             residuals[j, :] = failed_value
             failed[j] = True
+            continue
+        theta = np.empty((n_rows, n_samples))
+        omega = np.empty((n_rows, n_samples))
+        for r in range(n_rows):
+            sample_joint(states[j], step, times, scored[r], n, theta[r], omega[r])
+        values = np.empty((channels.shape[0], n_samples))
+        sample_outputs(outputs[j], step, times, channels, values)
+        profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
+        for u in range(levels.shape[0]):
+            pack_profile(population[j], u * PER_UNIT, levels[u], profiles[u])
+        fill_residual(theta, omega, target_theta, target_omega, weights, weight_velocity,
+                      weight_end, weight_effort, profiles, rests, times, values,
+                      target_channels, channel_scales, residuals[j])
+        failed[j] = False

@@ -179,6 +179,9 @@ class FitProblem:
         self.target_angles = np.ascontiguousarray(self.target.angles)
         channels = self.target.channels
         self.channels = np.array([CHANNELS.index(c) for c in channels], dtype=np.int64)
+        # the steps whose ground outputs the channels are sampled from (none without them)
+        self.ground_steps = obj.steps_around(self.times, self.step, self.n_steps) \
+            if channels else np.zeros(0, dtype=np.int64)
         self.target_channels = np.ascontiguousarray(
             np.array(list(channels.values())).reshape(len(channels), self.times.size))
         self.body_weight = base.weight
@@ -200,13 +203,23 @@ class FitProblem:
         out = np.empty((population.shape[0], self.residual_size))
         failed = np.zeros(population.shape[0], dtype=np.bool_)
         seg, joints, units = self.arrays
-        obj.residual_population(
-            population, self.step_loop,
-            self.coupling.to_array(), self.y0, self.step, self.n_steps, seg, joints, units,
-            self.levels, self.rests, self.explicit_muscles, self.times, self.scored,
-            self.target_angles, self.target_omega, self.weights, self.weight_velocity,
-            self.weight_end, self.weight_effort, self.channels, self.target_channels,
-            self.channel_scales, out, failed)
+        steps = self.n_steps + 1
+        for begin in range(0, population.shape[0], obj.POPULATION_CHUNK):
+            rows = population[begin:begin + obj.POPULATION_CHUNK]
+            m = rows.shape[0]
+            states = np.empty((m, steps, self.y0.size))
+            outputs = np.zeros((m, len(CHANNELS), steps if self.channels.size else 1))
+            status = np.zeros(m, dtype=np.int64)
+            obj.simulate_population(rows, self.step_loop, self.coupling.to_array(), self.y0,
+                                    self.step, self.n_steps, seg, joints, units, self.levels,
+                                    self.explicit_muscles, self.ground_steps, states,
+                                    np.empty((m, self.levels.size, 0)), outputs, status)
+            obj.population_residuals(
+                rows, self.levels, states, outputs, status, self.step, joints.shape[0],
+                self.rests, self.times, self.scored, self.target_angles, self.target_omega,
+                self.weights, self.weight_velocity, self.weight_end, self.weight_effort,
+                self.channels, self.target_channels, self.channel_scales,
+                out[begin:begin + m], failed[begin:begin + m])
         self.simulations += population.shape[0]
         self.failed_simulations += int(failed.sum())
         return out, failed

@@ -34,7 +34,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ModelError, check_range
-from ..fitting.objective import RUN_OK, RUN_REASONS
+from ..fitting.objective import (
+    POPULATION_CHUNK,
+    RUN_OK,
+    RUN_REASONS,
+    simulate_population,
+)
 from ..fitting.parameters import (
     HARD_LIMITS,
     PER_UNIT,
@@ -51,15 +56,12 @@ from ..model.chain import ChainModel, as_chain
 from ..solvers import fixed_step as fs
 from ..solvers.coupling import default_coupling
 from ..solvers.techniques import FIT_METHODS
-from . import population as pop
 from .goals import Constraint, Goal, Trial
 
 #: Cost of a failed candidate (costs of usable ones are O(1): goals in units of the start's).
 FAILED_COST = 1.0e6
 #: Cost of an infeasible candidate, before its violation is added (`OptimiseProblem`).
 INFEASIBLE_COST = 1.0e3
-#: Candidates simulated per compiled call (bounds the memory of the stored motions).
-CHUNK = 64
 ROBUST_MODES = ("worst", "mean")
 #: Duration of the ramps added to a unit with fewer than 3 (they hold its level), s.
 HOLD_RAMP_DURATION = 0.1
@@ -307,11 +309,12 @@ class OptimiseProblem:
 
     def trials(self, population) -> list[tuple[Trial | None, str]]:
         """(trial, "") or (None, why it failed) of every row of ``population`` (full
-        parameter vectors), simulated in compiled parallel threads, `CHUNK` at a time."""
+        parameter vectors), simulated in compiled parallel threads, `POPULATION_CHUNK` at a
+        time."""
         population = np.ascontiguousarray(np.atleast_2d(population), dtype=float)
         out: list[tuple[Trial | None, str]] = []
-        for begin in range(0, population.shape[0], CHUNK):
-            out += self._chunk(population[begin:begin + CHUNK])
+        for begin in range(0, population.shape[0], POPULATION_CHUNK):
+            out += self._chunk(population[begin:begin + POPULATION_CHUNK])
         self.simulations += population.shape[0]
         return out
 
@@ -320,12 +323,13 @@ class OptimiseProblem:
         states = np.empty((m, steps, self.y0.size))
         activations = np.empty((m, self.levels.size, steps))
         outputs = np.zeros((m, len(GROUND_OUTPUTS), steps if self.ground else 1))
+        ground_steps = np.arange(steps if self.ground else 0)
         status = np.zeros(m, dtype=np.int64)
         seg, joints, units = self.arrays
-        pop.simulate_population(rows, self.step_loop, self.coupling.to_array(), self.y0,
-                                self.step, self.n_steps, seg, joints, units, self.levels,
-                                self.explicit_muscles, self.ground, states, activations,
-                                outputs, status)
+        simulate_population(rows, self.step_loop, self.coupling.to_array(), self.y0,
+                            self.step, self.n_steps, seg, joints, units, self.levels,
+                            self.explicit_muscles, ground_steps, states, activations,
+                            outputs, status)
         model = self.start_model
         n, nb = model.n_coordinates, model.n_base
         time = np.arange(steps) * self.step
