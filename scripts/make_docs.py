@@ -246,8 +246,6 @@ def main() -> None:
     parser.add_argument("--presets", action="store_true",
                         help="only the presets' motions of docs/presets.md, their conventions "
                              "figures and the jumps' result figures")
-    parser.add_argument("--skip-optima", action="store_true",
-                        help="with --check: do not regenerate the optima of docs/optimise.md")
     args = parser.parse_args()
     problems = missing_blocks()
     if problems:
@@ -273,7 +271,7 @@ def main() -> None:
             sys.exit("docs/model.md: the squat jump's contact figures differ; run "
                      "python scripts/make_docs.py --presets")
         write_blocks("docs/model.md", contacts)
-    if args.check and not args.skip_optima:
+    if args.check:
         problems = check_optimise_spread()
         if problems:
             sys.exit("\n".join(problems))
