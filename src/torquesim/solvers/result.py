@@ -18,6 +18,7 @@ from ..model.body import (
     passive_torque,
 )
 from ..model.chain import UNIT_ROW_SIZE, ChainModel, PackedChain
+from ..model.contact import take_off_index
 from ..model.state import unit_state
 from ..model.torque_generator import (
     ACTIVATION_FLOOR,
@@ -318,10 +319,8 @@ class SimulationResult:
         rise = float(c["com_y"].max() - c["com_y"][0])
         take_off = landing = None
         flight = None
-        was_loaded = np.maximum.accumulate(loaded)
-        off = np.flatnonzero(~loaded & was_loaded)
-        if off.size:
-            i = int(off[0])
+        i = take_off_index(c["grf_y"])
+        if i is not None:
             take_off = float(self.time[i])
             speed = float(c["com_speed_y"][i])
             flight = max(speed, 0.0) ** 2 / (2.0 * m.gravity) if m.gravity > 0 else math.inf
