@@ -218,3 +218,33 @@ def test_torque_angle_slope_is_its_derivative(theta_cc):
     numeric = (tg.torque_angle(theta_cc + eps, PF)
                - tg.torque_angle(theta_cc - eps, PF)) / (2 * eps)
     assert tg.torque_angle_slope(theta_cc, PF) == pytest.approx(numeric, abs=1e-6)
+
+
+def test_a_unit_s_bounds_are_written_once():
+    """UNIT_FIELDS is the one statement of each field's bounds: the docstring says the same
+    (it said (0, inf) for 8 fields the check held to finite limits), the model file's
+    comment is made from it, and the check refuses a value just beyond either end, and an
+    open end itself."""
+    import dataclasses
+    import re
+
+    from torquesim.io.model_file import FIELD_DOCS
+    from torquesim.model.torque_generator import UNIT_FIELDS, TorqueGeneratorUnit
+
+    doc = " ".join(TorqueGeneratorUnit.__doc__.split())
+    assert set(UNIT_FIELDS) == set(TorqueGeneratorUnit.field_names())
+    unit = TorqueGeneratorUnit.flexor_default()
+    values = unit.as_dict()
+    for name, allowed in UNIT_FIELDS.items():
+        said = re.search(rf"{name} : float (.*?)(?= \w+ : float|$)", doc).group(1)
+        assert f"Bounds {allowed.interval()}." in said, name
+        assert FIELD_DOCS[name].endswith(allowed.interval(plain=True)), name
+        low, high = allowed.limits(values)
+        for bound, is_open, outward in ((low, allowed.low_open, -1), (high, allowed.high_open, 1)):
+            beyond = bound + outward * 1e-9 * max(1.0, abs(bound))
+            with pytest.raises(ts.ModelError) as info:
+                dataclasses.replace(unit, **{name: beyond})
+            assert info.value.field == name
+            if is_open:
+                with pytest.raises(ts.ModelError):
+                    dataclasses.replace(unit, **{name: bound})

@@ -53,7 +53,7 @@ from ..model.chain import OPPOSITE_MOTIONS as OPPOSITE
 from ..model.chain import POSITIVE_MOTIONS, ChainModel, Joint, PointLoad, Segment, Unit
 from ..model.contact import GroundContact, Point
 from ..model.elbow import ElbowModel
-from ..model.torque_generator import TorqueGeneratorUnit
+from ..model.torque_generator import UNIT_FIELDS, TorqueGeneratorUnit, allowed_text
 from .atomic import write_text_atomic
 
 EQUILIBRIUM = "equilibrium"
@@ -77,19 +77,6 @@ FIELD_DOCS = {
     "endstop_upper_angle": "rad, q_hi (> q_lo). [-pi, 2pi]",
     "coordinate": "output column / OpenSim coordinate name",
     "positive": "what a growing angle is: " + ", ".join(POSITIVE_MOTIONS),
-    "isometric_torque": "N m, T0. (0, 1e4]",
-    "eccentric_torque_max": "N m, T_max. (T0, 10 T0]",
-    "max_velocity": "rad/s, omega_max. (0, 200]",
-    "velocity_constant": "rad/s, omega_c of the Hill hyperbola. (0, 1000]",
-    "min_differential_activation": "a_min of d(omega). [0, 1]",
-    "differential_activation_rate": "rad/s, omega_r of d(omega). (0, 1000]",
-    "differential_activation_midpoint": "rad/s, omega_1 of d(omega). (-omega_max, omega_max)",
-    "optimal_angle": "rad, theta_opt of the torque/angle curve. [-pi, 2pi]",
-    "angle_curvature": "rad^-2, k2 of the torque/angle curve. [0, 1000]",
-    "se_stiffness": "N m/rad, series elastic element. (0, 1e6]",
-    "eccentric_slope_ratio": "eccentric/concentric slope of T_omega at 0 (Yeadon 2006: 4.3). "
-                             "(0, 100]",
-    "ce_damping": "N m s/rad, CE parallel damping beta (Millard 2013; 0 = abstract). [0, 1e4]",
     "activation_time": "s, tau_act of da/dt (Thelen 2003: 0.015). (0, 1]",
     "base": "fixed (a pivot at the origin) or free (stands on its contacts)",
     "parent_distance": "m, where its joint sits along the parent's axis. [-10, 10]",
@@ -101,6 +88,7 @@ FIELD_DOCS = {
     "friction": "mu of the regularised Coulomb friction. [0, 5]",
     "slip_speed": "m/s, v_s of the friction regularisation. (0, 1]",
     "deactivation_time": "s, tau_deact of da/dt (Thelen 2003: 0.050). (0, 1]",
+    **{name: allowed_text(name) for name in UNIT_FIELDS},
 }
 SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads",
                 "parent", "parent_distance")

@@ -39,6 +39,97 @@ TORQUE_ANGLE_FLOOR = 0.01
 ACTIVATION_FLOOR = 0.01
 
 
+#: A bound that is another field's value times a factor: (factor, field name).
+Related = tuple[float, str]
+
+
+@dataclass(frozen=True)
+class Allowed:
+    """The allowed values of one unit parameter, written once: `TorqueGeneratorUnit`'s range
+    check, its docstring's "Bounds" (held to it by a test) and the model file's comment
+    (`allowed_text`) are made from it.
+
+    ``low`` and ``high`` are numbers, or (factor, field) for a bound that is another field's
+    value times the factor; ``low_open``/``high_open`` exclude an end. ``unit`` is the SI
+    unit as messages print it ("" for a ratio); ``meaning`` says what the field is, in plain
+    ASCII, as model files print it.
+    """
+
+    unit: str
+    meaning: str
+    low: float | Related
+    high: float | Related
+    low_open: bool = False
+    high_open: bool = False
+
+    @property
+    def related(self) -> bool:
+        """True when a bound is another field's value."""
+        return isinstance(self.low, tuple) or isinstance(self.high, tuple)
+
+    def limits(self, values: dict[str, float]) -> tuple[float, float]:
+        """(low, high) given the values of the fields checked before this one."""
+        return tuple(b[0] * values[b[1]] if isinstance(b, tuple) else b
+                     for b in (self.low, self.high))
+
+    def interval(self, plain: bool = False) -> str:
+        """The bounds as the docs write them, e.g. ``(0, 1e4]``, ``[−π, 2π]``,
+        ``(isometric_torque, 10 × isometric_torque]``; ``plain``: ASCII (``[-pi, 2pi]``),
+        for model files."""
+        low, high = _bound(self.low, plain), _bound(self.high, plain)
+        return f"{'(' if self.low_open else '['}{low}, {high}{')' if self.high_open else ']'}"
+
+
+def _bound(value: float | Related, plain: bool) -> str:
+    """One end of an interval in words: a field's name (times its factor), a multiple of π,
+    a power of ten from 1000 (``1e4``) or the number."""
+    minus = "-" if plain else "−"
+    if isinstance(value, tuple):
+        factor, name = value
+        if abs(factor) == 1.0:
+            return f"{minus if factor < 0 else ''}{name}"
+        return f"{factor:g}{' ' if plain else ' × '}{name}"
+    for k in (-1, 1, 2):
+        if value == k * math.pi:
+            return f"{minus if k < 0 else ''}{'2' if k == 2 else ''}{'pi' if plain else 'π'}"
+    if value >= 1e3 and math.log10(value) == int(math.log10(value)):
+        return f"1e{int(math.log10(value))}"
+    return f"{value:g}"
+
+
+#: Every field of `TorqueGeneratorUnit` with its allowed values, in the order they are
+#: checked (a field that bounds another comes first).
+UNIT_FIELDS: dict[str, Allowed] = {
+    "isometric_torque": Allowed("N·m", "T0", 0.0, 1e4, low_open=True),
+    "eccentric_torque_max": Allowed("N·m", "T_max", (1.0, "isometric_torque"),
+                                    (10.0, "isometric_torque"), low_open=True),
+    "max_velocity": Allowed("rad/s", "omega_max", 0.0, 200.0, low_open=True),
+    "velocity_constant": Allowed("rad/s", "omega_c of the Hill hyperbola", 0.0, 1e3,
+                                 low_open=True),
+    "eccentric_slope_ratio": Allowed("", "eccentric/concentric slope of T_omega at 0 (Yeadon "
+                                     "2006: 4.3)", 0.0, 100.0, low_open=True),
+    "min_differential_activation": Allowed("", "a_min of d(omega)", 0.0, 1.0),
+    "differential_activation_rate": Allowed("rad/s", "omega_r of d(omega)", 0.0, 1e3,
+                                            low_open=True),
+    "differential_activation_midpoint": Allowed("rad/s", "omega_1 of d(omega)",
+                                                (-1.0, "max_velocity"), (1.0, "max_velocity"),
+                                                low_open=True, high_open=True),
+    "optimal_angle": Allowed("rad", "theta_opt of the torque/angle curve", -math.pi,
+                             2 * math.pi),
+    "angle_curvature": Allowed("rad^-2", "k2 of the torque/angle curve", 0.0, 1e3),
+    "se_stiffness": Allowed("N·m/rad", "series elastic element", 0.0, 1e6, low_open=True),
+    "ce_damping": Allowed("N·m·s/rad", "CE parallel damping beta (Millard 2013; 0 = abstract)",
+                          0.0, 1e4),
+}
+
+
+def allowed_text(name: str) -> str:
+    """The model file's comment for unit field ``name``: unit, meaning and bounds, ASCII."""
+    allowed = UNIT_FIELDS[name]
+    unit = allowed.unit.replace("·", " ")
+    return f"{unit + ', ' if unit else ''}{allowed.meaning}. {allowed.interval(plain=True)}"
+
+
 @dataclass(frozen=True)
 class TorqueGeneratorUnit:
     """Parameters of one torque generator unit (flexor or extensor).
@@ -46,27 +137,27 @@ class TorqueGeneratorUnit:
     Attributes
     ----------
     isometric_torque : float
-        T0, tetanic torque at zero CE velocity. N·m. Bounds (0, inf).
+        T0, tetanic torque at zero CE velocity. N·m. Bounds (0, 1e4].
     eccentric_torque_max : float
-        T_max, eccentric plateau of T_ω. N·m. Bounds (T0, inf).
+        T_max, eccentric plateau of T_ω. N·m. Bounds (isometric_torque, 10 × isometric_torque].
     max_velocity : float
-        ω_max, CE velocity at which T_ω reaches zero. rad/s. Bounds (0, inf).
+        ω_max, CE velocity at which T_ω reaches zero. rad/s. Bounds (0, 200].
     velocity_constant : float
-        ω_c, Hill hyperbola constant of the concentric branch. rad/s. Bounds (0, inf).
+        ω_c, Hill hyperbola constant of the concentric branch. rad/s. Bounds (0, 1e3].
     eccentric_slope_ratio : float
-        k, ratio of eccentric to concentric slope of T_ω at ω = 0. Default 4.3. Bounds (0, inf).
+        k, ratio of eccentric to concentric slope of T_ω at ω = 0. Default 4.3. Bounds (0, 100].
     min_differential_activation : float
         a_min, lower asymptote of d(ω). Bounds [0, 1].
     differential_activation_rate : float
-        ω_r, width of the d(ω) sigmoid. rad/s. Bounds (0, inf).
+        ω_r, width of the d(ω) sigmoid. rad/s. Bounds (0, 1e3].
     differential_activation_midpoint : float
-        ω_1, centre of the d(ω) sigmoid. rad/s. Bounds (-ω_max, ω_max).
+        ω_1, centre of the d(ω) sigmoid. rad/s. Bounds (−max_velocity, max_velocity).
     optimal_angle : float
-        θ_opt, CE angle (joint-equivalent) of peak torque. rad. Bounds [-π, 2π].
+        θ_opt, CE angle (joint-equivalent) of peak torque. rad. Bounds [−π, 2π].
     angle_curvature : float
-        k2, curvature of the quadratic torque/angle curve. rad⁻². Bounds [0, inf).
+        k2, curvature of the quadratic torque/angle curve. rad⁻². Bounds [0, 1e3].
     se_stiffness : float
-        k, torsional stiffness of the series elastic element. N·m/rad. Bounds (0, inf).
+        k, torsional stiffness of the series elastic element. N·m/rad. Bounds (0, 1e6].
     ce_damping : float
         β, a damper in parallel with the CE (the remedy of Millard et al. 2013, rotational
         form): the CE torque becomes a·T_θ·h(ω_cc) − β·ω_cc, which makes the CE equation
@@ -88,24 +179,14 @@ class TorqueGeneratorUnit:
     ce_damping: float = 0.0
 
     def __post_init__(self) -> None:
-        t0 = check_range("isometric_torque", self.isometric_torque, 0.0, 1e4, low_open=True,
-                         unit="N·m")
-        check_range("eccentric_torque_max", self.eccentric_torque_max, t0, 10 * t0,
-                    low_open=True, unit="N·m (above isometric_torque, at most 10 times it)")
-        wmax = check_range("max_velocity", self.max_velocity, 0.0, 200.0, low_open=True,
-                           unit="rad/s")
-        check_range("velocity_constant", self.velocity_constant, 0.0, 1e3, low_open=True,
-                    unit="rad/s")
-        check_range("eccentric_slope_ratio", self.eccentric_slope_ratio, 0.0, 100.0, low_open=True)
-        check_range("min_differential_activation", self.min_differential_activation, 0.0, 1.0)
-        check_range("differential_activation_rate", self.differential_activation_rate, 0.0,
-                    1e3, low_open=True, unit="rad/s")
-        check_range("differential_activation_midpoint", self.differential_activation_midpoint,
-                    -wmax, wmax, low_open=True, high_open=True, unit="rad/s")
-        check_range("optimal_angle", self.optimal_angle, -math.pi, 2 * math.pi, unit="rad")
-        check_range("angle_curvature", self.angle_curvature, 0.0, 1e3, unit="rad^-2")
-        check_range("se_stiffness", self.se_stiffness, 0.0, 1e6, low_open=True, unit="N·m/rad")
-        check_range("ce_damping", self.ce_damping, 0.0, 1e4, unit="N·m·s/rad")
+        values: dict[str, float] = {}
+        for name, allowed in UNIT_FIELDS.items():
+            low, high = allowed.limits(values)
+            values[name] = check_range(
+                name, getattr(self, name), low, high, low_open=allowed.low_open,
+                high_open=allowed.high_open,
+                unit=allowed.unit + (f", that is {allowed.interval()}" if allowed.related
+                                     else ""))
         _check_monotone(self.to_array())
 
     @classmethod
