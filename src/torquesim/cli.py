@@ -12,7 +12,7 @@ import click
 
 from .errors import ModelError, SimulationError
 from .model.preset_names import preset_list
-from .solvers.techniques import FIT_METHODS, METHODS, TECHNIQUES
+from .solvers.techniques import FIT_METHODS, FIXED_STEP_METHODS, METHODS, TECHNIQUES
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
@@ -174,7 +174,7 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     if grf_path and not model.contacts:
         raise ModelError("--grf", f"{model.name} has no ground contacts; allowed: a model "
                          "with [[contacts]]")
-    fixed = method != "reference"
+    fixed = method in FIXED_STEP_METHODS
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
     _announce_size(model, method, step, duration, out_path)
     compiling_for(f"the {method} technique for {model_kind(model)}")
@@ -399,7 +399,7 @@ def _announce_size(model, method, step, duration, out_path) -> None:
 
     span = model.duration if duration is None else check_range(
         "duration", duration, 0.0, 600.0, low_open=True, unit="s")
-    if method == "reference":
+    if method not in FIXED_STEP_METHODS:  # the reference: its output grid
         rows = round(span / DEFAULT_OUTPUT_STEP) + 1
         steps = 0
     else:

@@ -12,8 +12,12 @@ from ..model.activation import activation
 from ..model.chain import ChainModel, as_chain
 from ..model.presets import preset
 from ..solvers import fixed_step as fs
-from ..solvers.coupling import default_coupling
-from ..solvers.techniques import FIT_METHODS
+from ..solvers.techniques import (
+    FIT_METHODS,
+    default_coupling,
+    explicit_muscles,
+    runs_monolithic,
+)
 from . import objective as obj
 from .parameters import ParameterSpace, with_ramps
 from .target import CHANNELS, Target, check_target
@@ -172,7 +176,7 @@ class FitProblem:
         self.coupling = default_coupling(self.method)
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_loop = fs.model_step_loop(base, self.method == "monolithic",
+        self.step_loop = fs.model_step_loop(base, runs_monolithic(self.method),
                                             self.coupling.to_array())
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
@@ -194,7 +198,7 @@ class FitProblem:
 
     @property
     def explicit_muscles(self) -> bool:
-        return self.method != "imex"
+        return explicit_muscles(self.method)
 
     def residuals(self, population) -> tuple[np.ndarray, np.ndarray]:
         """Residual vectors (rows) and failure flags of the parameter vectors (rows) of

@@ -54,8 +54,12 @@ from ..fitting.problem import default_step, fit_step
 from ..model.body import GROUND_OUTPUTS
 from ..model.chain import ChainModel, as_chain
 from ..solvers import fixed_step as fs
-from ..solvers.coupling import default_coupling
-from ..solvers.techniques import FIT_METHODS
+from ..solvers.techniques import (
+    FIT_METHODS,
+    default_coupling,
+    explicit_muscles,
+    runs_monolithic,
+)
 from .goals import Constraint, Goal, Trial
 
 #: Cost of a failed candidate (costs of usable ones are O(1): goals in units of the start's).
@@ -280,7 +284,7 @@ class OptimiseProblem:
         self.coupling = default_coupling(self.method)
         packed = self.model3.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_loop = fs.model_step_loop(start, self.method == "monolithic",
+        self.step_loop = fs.model_step_loop(start, runs_monolithic(self.method),
                                             self.coupling.to_array())
         self.ground = bool(start.contacts) and start.base == "free"
         self.joint_names = tuple(j.name for j in start.joints)
@@ -301,7 +305,7 @@ class OptimiseProblem:
     # ---- simulating --------------------------------------------------------------------
     @property
     def explicit_muscles(self) -> bool:
-        return self.method != "imex"
+        return explicit_muscles(self.method)
 
     def model_for(self, x) -> ChainModel:
         """The model with the activation ramps of the full parameter vector ``x``."""

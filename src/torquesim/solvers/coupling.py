@@ -108,10 +108,3 @@ class Coupling:
 
 #: The IMEX technique (``method="imex"``): body on explicit RK4, muscles on implicit SDIRK2.
 IMEX = Coupling(order="body-first", predictor="linear", muscle_solver="sdirk2")
-
-
-def default_coupling(method: str) -> Coupling:
-    """The coupling a fixed-step technique runs with unless told otherwise: `IMEX` for
-    ``imex``, the default `Coupling` for ``partitioned`` (and ``monolithic``, which ignores
-    it)."""
-    return IMEX if method == "imex" else Coupling()

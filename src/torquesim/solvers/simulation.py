@@ -13,10 +13,19 @@ from ..model.body import body_switches
 from ..model.chain import ChainModel, as_chain
 from ..model.elbow import default_model
 from . import fixed_step as fs
-from .coupling import IMEX, Coupling
+from .coupling import Coupling
 from .rates import compiled_derivative
 from .result import RunCost, SimulationResult, StabilityReport
-from .techniques import FIXED_STEP_METHODS, METHODS, SCIPY_METHODS, nominal_order
+from .techniques import (
+    FIXED_STEP_METHODS,
+    METHODS,
+    SCIPY_METHODS,
+    default_coupling,
+    explicit_muscles,
+    nominal_order,
+    runs_monolithic,
+    scipy_solver,
+)
 
 # SciPy is imported only when a SciPy method is used (start-up time).
 DEFAULT_STEP = 1.0e-4
@@ -112,12 +121,10 @@ def simulate(
     packed = model.pack(start.levels)
     y0 = start.state if initial_state is None else _check_state(initial_state, model)
     if method in FIXED_STEP_METHODS:
-        if method == "imex":
-            coupling = coupling or IMEX
-            if not coupling.implicit_muscles:
-                raise ModelError("coupling.muscle_solver", "method 'imex' needs an implicit "
-                                 "muscle solver; allowed: sdirk2")
-        coupling = coupling or Coupling()
+        coupling = coupling or default_coupling(method)
+        if not explicit_muscles(method) and not coupling.implicit_muscles:
+            raise ModelError("coupling.muscle_solver", f"method {method!r} needs an implicit "
+                             "muscle solver; allowed: sdirk2")
         if tolerance is not None:
             check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
         result = _fixed_step(model, packed, y0, method, step, coupling)
@@ -127,8 +134,7 @@ def simulate(
         if tolerance is not None and result.success:
             result = _with_error_estimate(result, model, packed, y0, method, coupling,
                                           tolerance)
-    elif method == "reference" or method.startswith("scipy:"):
-        name = "Radau" if method == "reference" else method.split(":", 1)[1]
+    elif (name := scipy_solver(method)) is not None:
         if name not in SCIPY_METHODS:
             allowed = ", ".join(f"scipy:{m}" for m in SCIPY_METHODS)
             raise ModelError("method", f"{method!r}: allowed {allowed}")
@@ -159,12 +165,12 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     n = step_count(model.duration, step)
     out = np.empty((n + 1, model.state_size))
     stats = fs.new_stats()
-    if method == "monolithic":
-        label, exchange = "monolithic", np.zeros(fs.COUPLING_SIZE)  # unused
-    else:
+    partitioned = not runs_monolithic(method)
+    if partitioned:
         label, exchange = coupling.label(), coupling.to_array()
-        method = "partitioned"
-    switches = fs.model_step_loop(model, method == "monolithic", exchange)
+    else:
+        label, exchange = method, np.zeros(fs.COUPLING_SIZE)  # unused
+    switches = fs.model_step_loop(model, not partitioned, exchange)
     # From Python the switches choose in Python (run_step_loop's own code, not compiled): only
     # the chosen loop is compiled, not also the wrapper around it (0.6 s of a cold start).
     run = fs.run_step_loop.py_func
@@ -175,11 +181,11 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     wall = _time.perf_counter() - start
     done = int(stats[fs.STEPS])
     times = np.arange(done + 1) * step
-    implicit = method == "partitioned" and coupling.implicit_muscles
+    implicit = partitioned and coupling.implicit_muscles
     stability = StabilityReport(float(stats[fs.WORST_RATIO]), float(stats[fs.WORST_TIME]),
                                 model.units[int(stats[fs.WORST_UNIT])].name
                                 if model.units else "",
-                                step / (coupling.muscle_substeps if method == "partitioned"
+                                step / (coupling.muscle_substeps if partitioned
                                         else 1),
                                 math.inf if implicit else fs.RK4_STABILITY_LIMIT)
     contact_ratio = float(stats[fs.CONTACT_RATIO])
@@ -206,12 +212,12 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     settings = {"step": step, "steps": n}
     if model.contacts:  # which part is stiff: the smallest time constant of each, s
         muscle_step = stability.step if not stability.in_contact else \
-            step / (coupling.muscle_substeps if method == "partitioned" else 1)
+            step / (coupling.muscle_substeps if partitioned else 1)
         settings["unit_time_constant_min_s"] = muscle_step / float(stats[fs.WORST_RATIO]) \
             if stats[fs.WORST_RATIO] > 0 else math.inf
         settings["contact_time_constant_min_s"] = step / contact_ratio \
             if contact_ratio > 0 else math.inf
-    if method == "partitioned":
+    if partitioned:
         settings["coupling"] = coupling.__dict__.copy()
         # The exchange's jumps at the step ends (a diagnostic, not the accuracy check: see
         # docs/study.md, "No wrong run without a word").
@@ -350,7 +356,7 @@ def _with_error_estimate(result, model, packed, y0, method, coupling, tolerance)
             advice = f"a step ≤ {result.step * shrink * 1e3:.3g} ms should meet it (order {p})"
         else:
             advice = "use a smaller step or method 'reference'"
-        if method == "partitioned" and not coupling.implicit_muscles:
+        if not runs_monolithic(method) and not coupling.implicit_muscles:
             advice += ", or method 'imex'"
         warning = (f"estimated max angle error {math.degrees(estimate):.3g}° ({how}) "
                    f"exceeds the tolerance {math.degrees(tolerance):.3g}°: {advice}")

@@ -12,16 +12,9 @@ from dataclasses import dataclass
 
 from .coupling import IMEX, Coupling
 
-#: The fixed-step methods `simulate` takes (the adaptive ones are "reference" and
-#: "scipy:NAME").
-FIXED_STEP_METHODS = ("monolithic", "partitioned", "imex")
 #: SciPy solvers (``scipy.integrate`` classes) usable on the whole system (``scipy:NAME``);
 #: ``reference`` is Radau.
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
-#: Every ``method`` name `simulate` accepts besides ``scipy:NAME``.
-METHODS = (*FIXED_STEP_METHODS, "reference")
-#: The methods a fit or a sweep may use (fixed step: the population runs in compiled code).
-FIT_METHODS = ("imex", "monolithic", "partitioned")
 
 
 @dataclass(frozen=True)
@@ -60,7 +53,15 @@ class Technique:
 
     @property
     def adaptive(self) -> bool:
-        return self.method.startswith("scipy:") or self.method == "reference"
+        return scipy_solver(self.method) is not None
+
+
+def scipy_solver(method: str) -> str | None:
+    """The SciPy solver an adaptive ``method`` runs (``reference``: Radau; ``scipy:NAME``:
+    NAME, valid or not); None for a fixed-step method."""
+    if method == "reference":
+        return "Radau"
+    return method.split(":", 1)[1] if method.startswith("scipy:") else None
 
 
 _EXPLICIT = "body RK4 and muscles RK4, each on its own, exchanging"
@@ -97,6 +98,46 @@ TECHNIQUES: tuple[Technique, ...] = (
 )
 
 
+#: The fixed-step methods `simulate` takes, each the name of its registered default
+#: technique (the adaptive ones are "reference" and "scipy:NAME").
+FIXED_STEP_METHODS = tuple(t.method for t in TECHNIQUES if not t.adaptive and t.name == t.method)
+#: Every ``method`` name `simulate` accepts besides ``scipy:NAME``.
+METHODS = (*FIXED_STEP_METHODS, "reference")
+#: The methods a fit, an optimisation or a sweep may use (fixed step: the population runs in
+#: compiled code), the IMEX technique, their default, first.
+FIT_METHODS = tuple(sorted(FIXED_STEP_METHODS, key=lambda m: m != "imex"))
+
+
+def method_technique(method: str) -> Technique:
+    """The registered technique a fixed-step ``method`` runs as when no coupling is given
+    (``partitioned``: Jacobi, zero-order hold; ``imex``: `IMEX`)."""
+    for t in TECHNIQUES:
+        if t.name == method and t.method == method and not t.adaptive:
+            return t
+    raise ValueError(f"{method!r} is not a fixed-step method ({', '.join(FIXED_STEP_METHODS)})")
+
+
+def runs_monolithic(method: str) -> bool:
+    """True when ``method`` is a fixed-step method whose loop is the monolithic one (one
+    state vector, one RK4), not the partitioned loop with its coupling; False for any other
+    name."""
+    return any(t.method == method and t.coupling is None and not t.adaptive
+               for t in TECHNIQUES)
+
+
+def explicit_muscles(method: str) -> bool:
+    """True when ``method`` (with its default coupling) integrates the muscles explicitly:
+    its runs are then bound by explicit RK4's stability limit in the units."""
+    return method_technique(method).implicit == "none"
+
+
+def default_coupling(method: str) -> Coupling:
+    """The coupling a fixed-step ``method`` runs with unless told otherwise: its registered
+    technique's (`IMEX` for ``imex``, the default `Coupling` for ``partitioned``), and the
+    default `Coupling` for ``monolithic``, which ignores it."""
+    return method_technique(method).coupling or Coupling()
+
+
 def study_techniques() -> tuple[Technique, ...]:
     """The techniques ``torquesim compare`` runs by default."""
     return tuple(t for t in TECHNIQUES if t.in_study)
@@ -119,9 +160,9 @@ def coupling_order(coupling: Coupling) -> int:
 
 def nominal_order(method: str, coupling: Coupling | None) -> int:
     """The declared order of a fixed-step run (registered technique or `coupling_order`)."""
-    if method == "monolithic":
-        return 4
+    if runs_monolithic(method):
+        return method_technique(method).order
     for t in fixed_step_techniques():
         if t.method == method and t.coupling == coupling:
             return t.order
-    return coupling_order(coupling or (IMEX if method == "imex" else Coupling()))
+    return coupling_order(coupling or default_coupling(method))

@@ -18,7 +18,7 @@ from ..errors import ModelError
 from ..model.chain import ChainModel, as_chain
 from ..solvers import simulate
 from ..solvers.simulation import step_count
-from ..solvers.techniques import Technique, study_techniques
+from ..solvers.techniques import Technique, runs_monolithic, study_techniques
 
 DEFAULT_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.2e-3, 0.1e-3, 0.05e-3)
 #: A default step list keeps at least this many steps (`default_steps`).
@@ -53,8 +53,9 @@ COLUMNS = ("technique", "method", "h_s", "tolerance", "max_error_rad", "max_erro
 #: steps per kernel (the monolithic loop and the partitioned loop have their own per-step
 #: overhead), body and muscle evaluations and Newton iterations; SciPy runs count steps,
 #: right-hand-side calls and LU factorisations.
-FIXED_STEP_WORK = (("step.monolithic", lambda r: r["steps"] * (r["method"] == "monolithic")),
-                   ("step.partitioned", lambda r: r["steps"] * (r["method"] != "monolithic")),
+FIXED_STEP_WORK = (("step.monolithic", lambda r: r["steps"] * runs_monolithic(r["method"])),
+                   ("step.partitioned",
+                    lambda r: r["steps"] * (not runs_monolithic(r["method"]))),
                    ("body", lambda r: r["rhs_body"]), ("muscle", lambda r: r["rhs_muscle"]),
                    ("newton", lambda r: r["newton_iterations"]))
 ADAPTIVE_WORK = (("step", lambda r: r["steps"]), ("call", lambda r: r["rhs_body"]),
