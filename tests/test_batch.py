@@ -204,14 +204,17 @@ def test_a_task_whose_worker_dies_is_run_again_elsewhere(client, tmp_path):
     assert results == {0: "finished"} and (tmp_path / "marker").read_text() == "died"
 
 
-def test_max_unit_torque_matches_the_output_columns():
+@pytest.mark.parametrize("preset, step", [("arm-raise", 5e-3), ("squat-jump", 2.5e-4)])
+def test_max_unit_torque_matches_the_output_columns(preset, step):
+    """On a free base too, whose coordinates come before the joints' (the jump's sweep
+    read the wrong columns and gave 10 104 N·m where the largest unit torque is 430)."""
     from torquesim.batch.sweep import max_unit_torque
 
-    arm = ts.load_model("builtin:arm-raise")
-    result = ts.simulate(arm, "imex", 5e-3)
+    model = ts.load_model(f"builtin:{preset}")
+    result = ts.simulate(model, "imex", step)
     columns = result.columns()
-    expected = max(np.max(np.abs(columns[f"torque_{u.name}"])) for u in arm.units)
-    assert max_unit_torque(arm, result.states) == pytest.approx(expected, rel=1e-12)
+    expected = max(np.max(np.abs(columns[f"torque_{u.name}"])) for u in model.units)
+    assert max_unit_torque(model, result.states) == pytest.approx(expected, rel=1e-12)
 
 
 def test_ctrl_c_keeps_what_finished_and_the_rerun_completes_the_rest(client, tmp_path):

@@ -70,3 +70,24 @@ def test_an_invalid_value_names_the_path(arm):
     with pytest.raises(ts.ModelError) as info:
         set_parameter(arm, "elbow_flexor.se_stiffness", -1.0)
     assert info.value.field == "elbow_flexor.se_stiffness"
+
+
+def test_points_and_contacts_are_paths():
+    """A contact is named by its point (``toe.stiffness``), a point by its name
+    (``heel.distance``): compare --vary and batch sweep --vary reach them as any field."""
+    jump = ts.load_model("builtin:squat-jump")
+    toe = get_parameter(jump, "points.toe.distance")
+    for path, value in (("toe.stiffness", 2e6), ("contacts.heel.friction", 0.5),
+                        ("toe.slip_speed", 0.05), ("points.toe.distance", toe - 0.002)):
+        changed = set_parameter(jump, path, value)
+        assert get_parameter(changed, path) == value
+        assert set_parameter(changed, path, get_parameter(jump, path)) == jump
+    soft = set_parameter(jump, "toe.stiffness", 2e6)
+    assert soft.contacts[0].stiffness == 2e6 and soft.contacts[1] == jump.contacts[1]
+    assert canonical_path(jump, "contacts.toe.stiffness") == "toe.stiffness"
+    with pytest.raises(ts.ModelError, match="no ground contact") as info:
+        get_parameter(jump, "hip_joint.stiffness", "--vary")
+    assert info.value.field == "--vary"
+    with pytest.raises(ts.ModelError, match="sink") as info:  # the model's own check
+        set_parameter(jump, "toe.stiffness", 1e-3)
+    assert info.value.field == "toe.stiffness"

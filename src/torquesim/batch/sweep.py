@@ -192,7 +192,8 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
 def max_unit_torque(model: ChainModel, states: np.ndarray) -> float:
     """The largest SE torque k·max(d·(θ_cc − q_j), 0) of any unit over the run, N·m
     (docs/model.md §2; the same as the ``torque_<unit>`` output columns)."""
-    joints = {j.name: k for k, j in enumerate(model.joints)}
+    # a joint's angle is state n_base + k: a free base's coordinates come first
+    joints = {j.name: model.n_base + k for k, j in enumerate(model.joints)}
     worst = 0.0
     for u, unit in enumerate(model.units):
         stretch = unit.direction * (states[:, model.layout.unit_state(u)]
@@ -217,14 +218,34 @@ TASKS_PER_WORKER = 4
 SWEEP_FINGERPRINT_FILE = "sweep_fingerprint.txt"
 
 
+#: The sweep's default step on a fixed base, s (IMEX: the default curl within 0.5°).
+FIXED_BASE_STEP = 5e-3
+
+
+def sweep_step(model) -> float:
+    """The default step of a sweep of ``model``, s: `FIXED_BASE_STEP` on a fixed base (or the
+    largest step below it that divides the duration); on a body on the ground the fit's
+    default (`default_step`: within its contacts' RK4 stability limit, which every technique
+    meets explicitly), which divides the duration. Before, every sweep of a jump ran at 5 ms
+    and every sample diverged."""
+    from ..fitting.problem import default_step, fit_step
+
+    wanted = default_step(model) if model.base == "free" and model.contacts else \
+        FIXED_BASE_STEP
+    return fit_step(model.duration, min(wanted, model.duration))[0]
+
+
 def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = False,
-          method: str = "imex", step: float = 5e-3, out=None, chunk: int | None = None,
+          method: str = "imex", step: float | None = None, out=None,
+          chunk: int | None = None,
           client=None, workers: int | None = None, scheduler: str | None = None,
           progress=None, tolerance: float = DEFAULT_TOLERANCE, overwrite: bool = False):
     """Simulate ``model`` (a chain, a file or ``builtin:NAME``) over the parameter
     distributions ``vary`` (``PATH=KIND(...)`` strings or `Distribution`) on Dask.
 
-    Returns (table, histories): a pandas DataFrame with one row per sample (its parameter
+    ``step`` (s) defaults to `sweep_step` of the model. Returns (table, histories): a pandas
+    DataFrame (its ``attrs["step_s"]`` the step every sample starts at) with one row per
+    sample (its parameter
     values, each joint's peak angle and its time, final angle, the largest unit torque, the
     estimated max angle error and the accuracy verdict, `ACCURACY_VERDICTS`, with
     ``tolerance`` rad, default 0.5°, and any error or warning) and the angle histories
@@ -255,6 +276,8 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     if not distributions:
         raise ModelError("--vary", "nothing to vary; allowed: one or more PATH=KIND(...)")
     chain = as_chain(load_model(model) if isinstance(model, str | Path) else model)
+    if step is None:
+        step = sweep_step(chain)
     n_steps = step_count(chain.duration, step, "--step")
     paths = [d.path for d in distributions]
     for d in distributions:  # every path and a typical value checked before any work
@@ -299,6 +322,7 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
                                   out, progress, overwrite)
     starts = list(range(0, values.shape[0], chunk))
     table, histories = _assemble(chain, paths, values, [results[k] for k in range(len(starts))])
+    table.attrs["step_s"] = step  # the samples' first step (a refined one has a smaller)
     if out is not None:
         from .report import write_sweep
 

@@ -15,10 +15,15 @@ A path is dot-separated:
 ``JOINT.FIELD``                 a joint's field, e.g. ``elbow.initial_angle`` (rad)
 ``SEGMENT.FIELD``               a segment's field, e.g. ``forearm_hand.mass`` (kg)
 ``SEGMENT.LOAD.FIELD``          a point load's mass, distance or inertia
+``POINT.distance|offset``       where a named point sits on its segment (m)
+``POINT.FIELD``                 the ground contact at a point: ``stiffness``, ``exponent``,
+                                ``damping``, ``friction`` or ``slip_speed``, e.g.
+                                ``toe.stiffness``
 ``gravity``, ``base_angle``     the model's own numbers
 ==============================  ==========================================================
 
-Optional leading ``units.``, ``joints.`` or ``segments.`` are accepted. Values are SI (the
+Optional leading ``units.``, ``joints.``, ``segments.``, ``points.`` or ``contacts.`` are
+accepted. Values are SI (the
 units of the model file); a value that makes the model invalid is a `ModelError` naming the
 path.
 """
@@ -31,6 +36,7 @@ from dataclasses import fields, replace
 from ..errors import ModelError
 from .activation import ActivationDynamics, Ramp
 from .chain import ChainModel
+from .contact import GroundContact, Point
 from .torque_generator import TorqueGeneratorUnit
 
 RAMP_FIELDS = tuple(f.name for f in fields(Ramp))
@@ -38,12 +44,17 @@ DYNAMICS_FIELDS = tuple(f.name for f in fields(ActivationDynamics))
 _RAMP = re.compile(r"ramp(\d+)")
 HELP = ("UNIT.FIELD, UNIT.initial_level, UNIT.rampN.delay|duration|level, "
         "UNIT.activation_time|deactivation_time, JOINT.FIELD, SEGMENT.FIELD, "
-        "SEGMENT.LOAD.mass|distance|inertia, gravity, base_angle")
+        "SEGMENT.LOAD.mass|distance|inertia, POINT.distance|offset, "
+        "POINT.stiffness|exponent|damping|friction|slip_speed (its contact), gravity, "
+        "base_angle")
+#: The numbers of a point and of the ground contact at a point.
+POINT_FIELDS = tuple(f.name for f in fields(Point) if f.name not in ("name", "segment"))
+CONTACT_FIELDS = tuple(f.name for f in fields(GroundContact) if f.name != "point")
 
 
 def _parts(path: str) -> list[str]:
     parts = path.strip().split(".")
-    if parts[0] in ("units", "joints", "segments") and len(parts) >= 3:
+    if parts[0] in ("units", "joints", "segments", "points", "contacts") and len(parts) >= 3:
         parts = parts[1:]
     return parts
 
@@ -105,6 +116,15 @@ def _locate(model: ChainModel, path: str, field: str):
                                                                     "inertia"):
         if parts[1] in {ld.name for ld in segments[parts[0]].loads}:
             return "load", parts[0], parts[1:]
+    if len(parts) == 2 and parts[1] in POINT_FIELDS and \
+            parts[0] in {p.name for p in model.points}:
+        return "point", parts[0], parts[1:]
+    if len(parts) == 2 and parts[1] in CONTACT_FIELDS:
+        if parts[0] in {c.point for c in model.contacts}:
+            return "contact", parts[0], parts[1:]
+        if parts[0] in {p.name for p in model.points}:
+            raise ModelError(field, f"{path!r}: point {parts[0]} has no ground contact; "
+                             f"allowed: {', '.join(c.point for c in model.contacts) or 'none'}")
     raise _not_a_path(model, path, field)
 
 
@@ -123,6 +143,10 @@ def _value(model: ChainModel, kind: str, owner: str, rest: list):
         return getattr(model.units[model.unit_index(owner)].activation_dynamics, rest[0])
     if kind == "joint":
         return getattr(model.joints[model.joint_index(owner)], rest[0])
+    if kind == "point":
+        return getattr(next(p for p in model.points if p.name == owner), rest[0])
+    if kind == "contact":
+        return getattr(next(c for c in model.contacts if c.point == owner), rest[0])
     segment = next(s for s in model.segments if s.name == owner)
     if kind == "segment":
         return getattr(segment, rest[0])
@@ -173,6 +197,13 @@ def set_parameter(model: ChainModel, path: str, value: float,
             return model.replace_joint(owner, **{rest[0]: value})
         if kind == "segment":
             return model.replace_segment(owner, **{rest[0]: value})
+        if kind == "point":
+            return model.replace(points=tuple(replace(p, **{rest[0]: value})
+                                              if p.name == owner else p for p in model.points))
+        if kind == "contact":
+            return model.replace(contacts=tuple(replace(c, **{rest[0]: value})
+                                                if c.point == owner else c
+                                                for c in model.contacts))
         segment = next(s for s in model.segments if s.name == owner)
         loads = [replace(ld, **{rest[1]: value}) if ld.name == rest[0] else ld
                  for ld in segment.loads]
