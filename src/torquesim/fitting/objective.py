@@ -2,7 +2,7 @@
 
 `simulate_population` simulates a population of candidate activation ramps in parallel
 threads: the one kernel of fits and optimisations. `population_residuals` turns a fit's
-simulated population into residual vectors, also in parallel.
+simulated population into residual vectors.
 
 The residual vector r of a candidate (all angles in degrees, times in s) has, for every scored
 joint j with weight w_j (weights sum to 1) and target sample k = 1…K,
@@ -219,7 +219,7 @@ def residual_size(n_rows: int, n_samples: int, n_units: int, weight_velocity: fl
         + n_channels * n_samples
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def population_residuals(population, levels, states, outputs, status, step, n, rests,
                          times, scored, target_theta, target_omega, weights, weight_velocity,
                          weight_end, weight_effort, channels, target_channels,
@@ -229,10 +229,12 @@ def population_residuals(population, levels, states, outputs, status, step, n, r
     coordinates, ground ``outputs`` and ``status``): q and q̇ of the ``scored`` coordinates
     at the target ``times`` by
     `sample_joint`, the ground outputs ``channels`` by `sample_outputs`, the activations from
-    the candidate's ramps (`pack_profile`, unit u starting at ``levels[u]``)."""
+    the candidate's ramps (`pack_profile`, unit u starting at ``levels[u]``). One thread:
+    sampling costs little beside the runs, and a parallel kernel would add a parallel
+    compilation (5 s) to a cold first fit."""
     n_rows, n_samples = target_theta.shape
     failed_value = FAILED_SCORE / math.sqrt(residuals.shape[1])
-    for j in prange(population.shape[0]):
+    for j in range(population.shape[0]):
         if status[j] != RUN_OK:
             residuals[j, :] = failed_value
             failed[j] = True
