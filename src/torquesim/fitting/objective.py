@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..model.body import body_work_size, ground_outputs
+from ..model.body import GROUND_OUTPUTS, body_work_size, ground_outputs
 from ..solvers import fixed_step as fs
 from ..solvers.rates import unit_excitation
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
@@ -152,6 +152,23 @@ def _ground_outputs_of_run(states, rows, n, seg, joints, out, free_base, tree):
                 out[c, k] = values[c]
 
 
+def run_population(rows, loop, coupling, y0, step: float, n_steps: int, arrays, levels,
+                   explicit_muscles: bool, ground_steps, activation_steps: int = 0):
+    """`simulate_population` of the ramp vectors ``rows`` (at most `POPULATION_CHUNK`) on the
+    packed ``arrays`` (segments, joints, units), with its output arrays made here: returns
+    (states, activations, ground outputs, status), the activations at the first
+    ``activation_steps`` steps and the ground outputs at ``ground_steps`` (indices)."""
+    m, steps = rows.shape[0], n_steps + 1
+    states = np.empty((m, steps, y0.size))
+    activations = np.empty((m, levels.size, activation_steps))
+    outputs = np.zeros((m, len(GROUND_OUTPUTS), steps if len(ground_steps) else 1))
+    status = np.zeros(m, dtype=np.int64)
+    simulate_population(rows, loop, coupling, y0, step, n_steps, *arrays, levels,
+                        explicit_muscles, np.asarray(ground_steps, dtype=np.int64), states,
+                        activations, outputs, status)
+    return states, activations, outputs, status
+
+
 def steps_around(times, step: float, n_steps: int) -> np.ndarray:
     """The step indices `sample_joint` and `sample_outputs` read at ``times`` (s from the
     start): the steps before and after each time."""
@@ -227,8 +244,8 @@ def population_residuals(population, levels, states, outputs, status, step, n, r
     """Residuals (rows of ``residuals``) and failure flags of every row of ``population``
     (m × 9U) from its run by `simulate_population` (``states`` of a body of ``n``
     coordinates, ground ``outputs`` and ``status``): q and q̇ of the ``scored`` coordinates
-    at the target ``times`` by
-    `sample_joint`, the ground outputs ``channels`` by `sample_outputs`, the activations from
+    at the target ``times`` by `sample_joint`, the ground outputs ``channels`` by
+    `sample_outputs`, the activations from
     the candidate's ramps (`pack_profile`, unit u starting at ``levels[u]``). One thread:
     sampling costs little beside the runs, and a parallel kernel would add a parallel
     compilation (5 s) to a cold first fit."""

@@ -206,20 +206,15 @@ class FitProblem:
         population = np.ascontiguousarray(np.atleast_2d(population), dtype=float)
         out = np.empty((population.shape[0], self.residual_size))
         failed = np.zeros(population.shape[0], dtype=np.bool_)
-        seg, joints, units = self.arrays
-        steps = self.n_steps + 1
         for begin in range(0, population.shape[0], obj.POPULATION_CHUNK):
             rows = population[begin:begin + obj.POPULATION_CHUNK]
             m = rows.shape[0]
-            states = np.empty((m, steps, self.y0.size))
-            outputs = np.zeros((m, len(CHANNELS), steps if self.channels.size else 1))
-            status = np.zeros(m, dtype=np.int64)
-            obj.simulate_population(rows, self.step_loop, self.coupling.to_array(), self.y0,
-                                    self.step, self.n_steps, seg, joints, units, self.levels,
-                                    self.explicit_muscles, self.ground_steps, states,
-                                    np.empty((m, self.levels.size, 0)), outputs, status)
+            states, _, outputs, status = obj.run_population(
+                rows, self.step_loop, self.coupling.to_array(), self.y0, self.step,
+                self.n_steps, self.arrays, self.levels, self.explicit_muscles, self.ground_steps)
             obj.population_residuals(
-                rows, self.levels, states, outputs, status, self.step, joints.shape[0],
+                rows, self.levels, states, outputs, status, self.step,
+                self.arrays[1].shape[0],
                 self.rests, self.times, self.scored, self.target_angles, self.target_omega,
                 self.weights, self.weight_velocity, self.weight_end, self.weight_effort,
                 self.channels, self.target_channels, self.channel_scales,

@@ -38,7 +38,7 @@ from ..fitting.objective import (
     POPULATION_CHUNK,
     RUN_OK,
     RUN_REASONS,
-    simulate_population,
+    run_population,
 )
 from ..fitting.parameters import (
     HARD_LIMITS,
@@ -51,7 +51,6 @@ from ..fitting.parameters import (
     with_ramps,
 )
 from ..fitting.problem import default_step, fit_step
-from ..model.body import GROUND_OUTPUTS
 from ..model.chain import ChainModel, as_chain
 from ..solvers import fixed_step as fs
 from ..solvers.techniques import (
@@ -324,16 +323,10 @@ class OptimiseProblem:
 
     def _chunk(self, rows) -> list[tuple[Trial | None, str]]:
         m, steps = rows.shape[0], self.n_steps + 1
-        states = np.empty((m, steps, self.y0.size))
-        activations = np.empty((m, self.levels.size, steps))
-        outputs = np.zeros((m, len(GROUND_OUTPUTS), steps if self.ground else 1))
-        ground_steps = np.arange(steps if self.ground else 0)
-        status = np.zeros(m, dtype=np.int64)
-        seg, joints, units = self.arrays
-        simulate_population(rows, self.step_loop, self.coupling.to_array(), self.y0,
-                            self.step, self.n_steps, seg, joints, units, self.levels,
-                            self.explicit_muscles, ground_steps, states, activations,
-                            outputs, status)
+        states, activations, outputs, status = run_population(
+            rows, self.step_loop, self.coupling.to_array(), self.y0, self.step, self.n_steps,
+            self.arrays, self.levels, self.explicit_muscles,
+            np.arange(steps if self.ground else 0), activation_steps=steps)
         model = self.start_model
         n, nb = model.n_coordinates, model.n_base
         time = np.arange(steps) * self.step

@@ -121,8 +121,7 @@ def runs_monolithic(method: str) -> bool:
     """True when ``method`` is a fixed-step method whose loop is the monolithic one (one
     state vector, one RK4), not the partitioned loop with its coupling; False for any other
     name."""
-    return any(t.method == method and t.coupling is None and not t.adaptive
-               for t in TECHNIQUES)
+    return method in FIXED_STEP_METHODS and method_technique(method).coupling is None
 
 
 def explicit_muscles(method: str) -> bool:
