@@ -1,8 +1,18 @@
-import numpy as np
-import pytest
-from hypothesis import settings
+import os
 
-import torquesim as ts
+# The suite runs in several processes (pytest-xdist), so each process's BLAS gets one thread:
+# OpenBLAS's default of one thread per core, in two processes on two cores, spins threads
+# against each other (measured: the strength tests 62 s under `-n 2`, 13 s with one thread;
+# scikit-learn's suite limits its xdist workers the same way). Set before NumPy loads BLAS,
+# here and, inherited, in the worker processes started after this file is read.
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from hypothesis import settings  # noqa: E402
+
+import torquesim as ts  # noqa: E402
 
 # No test depends on the clock: hypothesis's per-example deadline (200 ms) failed three
 # property tests on a loaded machine, where an example's first call compiles.

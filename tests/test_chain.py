@@ -190,7 +190,7 @@ def test_presets_start_at_rest(name):
 @pytest.mark.parametrize("name", ["knee-extension", "arm-raise"])
 def test_preset_methods_agree_with_the_reference(name):
     model = ts.load_model(f"builtin:{name}")
-    reference = ts.simulate(model, "reference", rtol=1e-11, atol=1e-13)
+    reference = ts.simulate(model, "reference", rtol=1e-10, atol=1e-12)
 
     def error(method, step, coupling=None):
         r = ts.simulate(model, method, step, coupling=coupling)
@@ -203,7 +203,9 @@ def test_preset_methods_agree_with_the_reference(name):
     assert error("partitioned", 5e-5, ts.Coupling(order="every-stage")) < 1e-6
     first, half = error("partitioned", 2.5e-5), error("partitioned", 1.25e-5)
     assert 1.5 < first / half < 2.4  # plain partitioned converges, at first order
-    for scipy_method in ("scipy:DOP853", "scipy:Radau"):
+    # an explicit method of another family agrees with the reference (Radau); Radau at a
+    # looser tolerance only once (on the arm it costs half the reference again)
+    for scipy_method in ("scipy:DOP853",) + (("scipy:Radau",) if name == "knee-extension" else ()):
         r = ts.simulate(model, scipy_method, rtol=1e-9, atol=1e-11)
         assert np.max(np.abs(r.q - reference.q)) < 1e-5
 

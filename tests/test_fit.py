@@ -625,7 +625,7 @@ def test_fit_quiet_prints_no_progress_and_lines_otherwise(tmp_path, capsys):
 def test_a_fit_that_stops_on_its_cap_says_so(synthetic_target, tmp_path):
     """A least-squares refinement that runs out of --iterations before its tolerance is
     named in the summary with what to change (before: only the search's own log said it)."""
-    from torquesim.fitting.outputs import fit_and_write, summary_lines
+    from torquesim.fitting.outputs import fit_and_write, summarise, summary_lines
 
     problem = FitProblem(synthetic_target)
     _, outcome, summary, _ = fit_and_write(problem, SearchSettings(starts=1, iterations=3),
@@ -633,9 +633,9 @@ def test_a_fit_that_stops_on_its_cap_says_so(synthetic_target, tmp_path):
     assert outcome.capped and "--iterations" in outcome.capped
     lines = [line for line in summary_lines(summary) if "stopped on" in line]
     assert len(lines) == 1 and "larger --iterations" in lines[0]
-    _, generous, summary, _ = fit_and_write(FitProblem(synthetic_target),
-                                            SearchSettings(starts=1, iterations=400),
-                                            tmp_path / "more")
+    enough = SearchSettings(starts=1, iterations=400)
+    generous = run_fit(problem, enough)
+    summary = summarise(problem, generous, enough)
     assert not generous.capped and not any("stopped on" in w for w in summary["warnings"])
 
 

@@ -76,7 +76,8 @@ def test_study_on_a_short_curl_measures_what_model_md_says(tmp_path, monkeypatch
     monkeypatch.setattr("torquesim.study.compare.CALIBRATION_REPEATS", 1)  # nothing timed
 
     model = ts.default_model().replace(duration=0.6)
-    rows, _, smooth = write_study(tmp_path, model, steps=(1e-3, 5e-4, 2e-4, 1e-4), repeats=1)
+    rows, _, smooth = write_study(tmp_path, model, steps=(1e-3, 5e-4, 2e-4, 1e-4), repeats=1,
+                                  tolerances=(1e-5, 1e-8))
     by = {(r["technique"], r["h_s"]): r for r in rows}
     # monolithic: unstable at 1 ms (bounded, wrong) and flagged; accurate below 0.25 ms
     assert by[("monolithic", 1e-3)]["guard_exceeded"]
@@ -152,7 +153,8 @@ def sensitivity_study(tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:  # no extra timing rounds: nothing here is timed
         patch.setattr("torquesim.study.compare.CALIBRATION_REPEATS", 1)
         summary = write_sensitivity(out, model, "se_stiffness", (150.0, 3000.0),
-                                    steps=(2e-3, 5e-4, 2e-4, 1e-4), repeats=1)
+                                    steps=(2e-3, 5e-4, 2e-4, 1e-4), repeats=1,
+                                    tolerances=(1e-4, 1e-7))  # none asserted on: two suffice
     return out, summary
 
 

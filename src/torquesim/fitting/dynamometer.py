@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ..errors import check_range
 from ..io.dynamometer import DynamometerTrial
@@ -63,26 +64,33 @@ def simulate_trial(name: str, unit: TorqueGeneratorUnit, direction: int, start: 
     fine = np.arange(steps + 1) * STEP
     angle_fine, _ = crank_motion(start, end, speed, hold, fine)
     half = crank_motion(start, end, speed, hold, fine[:-1] + STEP / 2)[0]
-    theta_cc = np.empty(steps + 1)
-    theta_cc[0] = start
-    guess = np.nan
-
-    def rate_of(theta, q):
-        return direction * unit_ce_velocity(direction * (theta - q), theta, activation, p, guess)
-
-    for i in range(steps):
-        c, q0, qh, q1 = theta_cc[i], angle_fine[i], half[i], angle_fine[i + 1]
-        k1 = rate_of(c, q0)
-        k2 = rate_of(c + 0.5 * STEP * k1, qh)
-        k3 = rate_of(c + 0.5 * STEP * k2, qh)
-        k4 = rate_of(c + STEP * k3, q1)
-        theta_cc[i + 1] = c + STEP / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    theta_cc = _unit_on_crank(start, angle_fine, half, float(direction), activation, p, STEP)
     angle, velocity = crank_motion(start, end, speed, hold, time)
     stretch = direction * (np.interp(time, fine, theta_cc) - angle)
     torque = direction * unit.se_stiffness * np.maximum(stretch, 0.0) + passive(angle)
     if noise:
         torque = torque + np.random.default_rng(seed).normal(0.0, noise, time.size)
     return DynamometerTrial(name, time, angle, velocity, torque, True)
+
+
+@njit(cache=True, error_model="numpy")
+def _unit_on_crank(start, angle, half, direction, activation, p, step):
+    """θ_cc (rad) at every crank angle of ``angle`` (rad, one per step of ``step`` s; ``half``
+    at the half steps) by classical RK4 on dθ_cc/dt = δ·ω_cc, the unit's CE starting at
+    ``start``."""
+    theta_cc = np.empty(angle.size)
+    theta_cc[0] = start
+    for i in range(angle.size - 1):
+        c, q0, qh, q1 = theta_cc[i], angle[i], half[i], angle[i + 1]
+        k1 = direction * unit_ce_velocity(direction * (c - q0), c, activation, p)
+        c2 = c + 0.5 * step * k1
+        k2 = direction * unit_ce_velocity(direction * (c2 - qh), c2, activation, p)
+        c3 = c + 0.5 * step * k2
+        k3 = direction * unit_ce_velocity(direction * (c3 - qh), c3, activation, p)
+        c4 = c + step * k3
+        k4 = direction * unit_ce_velocity(direction * (c4 - q1), c4, activation, p)
+        theta_cc[i + 1] = c + step / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return theta_cc
 
 
 def simulate_passive_trial(name: str, start: float, end: float, passive: PassiveTorque, *,

@@ -241,6 +241,27 @@ AGREEMENT_DEG = 0.02
 MAX_REFINEMENTS = 4
 
 
+#: The last reference re-simulation, as (its key, the run): see `reference_resimulation`.
+_LAST_REFERENCE: dict = {}
+
+
+def reference_resimulation(problem: FitProblem, x):
+    """The model with parameters ``x`` re-simulated by the reference solver on the fit's step
+    grid. The last such run is kept, so that the integration-error check of
+    `fit_to_accuracy` and the summary (`torquesim.fitting.outputs.summarise`) read one Radau
+    solve, not two of the same model (seconds each). Read it, do not change it."""
+    from ..solvers.simulation import simulate
+
+    model = problem.model_for(x)
+    key = (model, problem.step)
+    last = _LAST_REFERENCE.get("run")  # one read and one write: safe between threads
+    if last is not None and last[0] == key:
+        return last[1]
+    run = simulate(model, "reference", output_step=problem.step, check=False)
+    _LAST_REFERENCE["run"] = (key, run)
+    return run
+
+
 def integration_gap(problem: FitProblem, x) -> dict[str, tuple[float, float]]:
     """Per scored joint (RMS error of the fit's own simulation, RMS error of the reference
     re-simulation), deg, of the model with parameters ``x``."""
@@ -249,7 +270,7 @@ def integration_gap(problem: FitProblem, x) -> dict[str, tuple[float, float]]:
     model = problem.model_for(x)
     own = simulate(model, problem.method, problem.step, coupling=problem.coupling,
                    check=False, advise=False, tolerance=None)
-    reference = simulate(model, "reference", output_step=problem.step, check=False)
+    reference = reference_resimulation(problem, x)
     failed = {j: (math.inf, math.inf) for j in problem.target.joints}
     mine = problem.errors_deg(own) if own.success else failed
     theirs = problem.errors_deg(reference) if reference.success else failed

@@ -13,7 +13,14 @@ from ..io.model_file import save_model
 from ..io.provenance import provenance
 from ..io.tables import write_table
 from ..solvers.simulation import simulate
-from .fit import AGREEMENT_DEG, AGREEMENT_FRACTION, FitOutcome, SearchSettings, agrees
+from .fit import (
+    AGREEMENT_DEG,
+    AGREEMENT_FRACTION,
+    FitOutcome,
+    SearchSettings,
+    agrees,
+    reference_resimulation,
+)
 from .objective import FAILED_SCORE
 from .problem import FitProblem
 
@@ -35,7 +42,7 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
     model = problem.model_for(outcome.x)
     fitted = simulate(model, problem.method, problem.step, coupling=problem.coupling,
                       check=False)
-    reference = simulate(model, "reference", output_step=problem.step, check=False)
+    reference = reference_resimulation(problem, outcome.x)
     failed = {j: (math.inf, math.inf) for j in problem.target.joints}
     errors = problem.errors_deg(fitted) if fitted.success else failed
     ref_errors = problem.errors_deg(reference) if reference.success else failed

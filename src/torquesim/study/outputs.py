@@ -58,11 +58,12 @@ def calibration_text(coefficients: dict[str, float]) -> dict[str, str]:
 
 
 def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=None,
-                model_source="builtin", smooth=None, timer=None):
+                model_source="builtin", smooth=None, timer=None,
+                tolerances=DEFAULT_TOLERANCES):
     """Run the study on ``model`` and write results.csv, verdict.csv, convergence.png,
     work_precision.png, time_constants.png, report.html and manifest.json into ``directory``.
-    ``smooth`` (orders on the smooth case) is measured unless given. ``timer``: see
-    `run_study`."""
+    ``smooth`` (orders on the smooth case) is measured unless given. ``timer`` and
+    ``tolerances`` (the adaptive solvers' rtol values): see `run_study`."""
     from ..io.model_file import model_to_toml
     from ..model.chain import as_chain
 
@@ -70,8 +71,8 @@ def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=No
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     extra = {} if timer is None else {"timer": timer}
-    rows, reference = run_study(model, steps=steps, repeats=repeats, progress=progress,
-                                **extra)
+    rows, reference = run_study(model, steps=steps, tolerances=tolerances, repeats=repeats,
+                                progress=progress, **extra)
     coefficients = calibrate(rows)
     if smooth is None:
         if progress:

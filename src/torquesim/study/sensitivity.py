@@ -22,7 +22,13 @@ from ..model.activation import ActivationProfile
 from ..model.chain import ChainModel, as_chain
 from ..model.paths import parse_assignment, set_parameter
 from ..plots import figure_png
-from .compare import ACCURACY_TARGETS_DEG, DEFAULT_REPEATS, stability_limit, verdict
+from .compare import (
+    ACCURACY_TARGETS_DEG,
+    DEFAULT_REPEATS,
+    DEFAULT_TOLERANCES,
+    stability_limit,
+    verdict,
+)
 from .outputs import smooth_case_orders, write_study
 from .report import plot_sensitivity
 
@@ -138,9 +144,11 @@ def render_sensitivity(summary, name, figures: dict[float, bytes], overview: byt
 
 
 def write_sensitivity(directory, model, name: str, values, *, steps, repeats=DEFAULT_REPEATS,
-                      progress=None, model_source="builtin") -> list[dict]:
+                      progress=None, model_source="builtin",
+                      tolerances=DEFAULT_TOLERANCES) -> list[dict]:
     """Run the study per value into ``directory/NAME=VALUE/`` and write
-    ``sensitivity.csv``, ``sensitivity.png`` and ``sensitivity.html`` into ``directory``."""
+    ``sensitivity.csv``, ``sensitivity.png`` and ``sensitivity.html`` into ``directory``
+    (``tolerances``: the adaptive solvers' rtol values, `run_study`)."""
     from .report import plot_time_constants
 
     directory = Path(directory)
@@ -154,7 +162,8 @@ def write_sensitivity(directory, model, name: str, values, *, steps, repeats=DEF
         if progress:
             progress(0, 0, f"{name} = {value:g}")
         rows, reference, _ = write_study(directory / f"{name}={value:g}", varied, steps=steps,
-                                         repeats=repeats, progress=progress, smooth=smooth,
+                                         tolerances=tolerances, repeats=repeats,
+                                         progress=progress, smooth=smooth,
                                          model_source=f"{model_source}, {name}={value:g}")
         summary += summary_rows(name, value, rows, reference)
         figures[value] = figure_png(plot_time_constants(reference))
