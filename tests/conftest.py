@@ -71,7 +71,9 @@ def chain_energy(result):
         stops = joint.endstop_array()
         energy += np.array([passive_energy(x, stops) for x in result.q[:, j]])
     for u, unit in enumerate(m.units):
-        q = result.q[:, m.joint_index(unit.joint)]
+        q = result.q[:, m.joint_index(unit.joint)]  # ψ = q_j + d·r·q_j2 for a two-joint unit
+        if unit.second_joint is not None:
+            q = q + unit.direction * unit.second_arm * result.q[:, m.joint_index(unit.second_joint)]
         stretch = unit.direction * (result.theta_cc[:, u] - q)
         energy += 0.5 * unit.parameters.se_stiffness * np.maximum(stretch, 0.0) ** 2
     return energy

@@ -190,14 +190,12 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
 
 
 def max_unit_torque(model: ChainModel, states: np.ndarray) -> float:
-    """The largest SE torque k·max(d·(θ_cc − q_j), 0) of any unit over the run, N·m
-    (docs/model.md §2; the same as the ``torque_<unit>`` output columns)."""
-    # a joint's angle is state n_base + k: a free base's coordinates come first
-    joints = {j.name: model.n_base + k for k, j in enumerate(model.joints)}
+    """The largest SE torque k·max(d·(θ_cc − ψ), 0) of any unit over the run, N·m, ψ the
+    unit's angle (docs/model.md §2; the same as the ``torque_<unit>`` output columns)."""
+    psi = model.unit_angles(states[:, model.layout.angles])
     worst = 0.0
     for u, unit in enumerate(model.units):
-        stretch = unit.direction * (states[:, model.layout.unit_state(u)]
-                                    - states[:, joints[unit.joint]])
+        stretch = unit.direction * (states[:, model.layout.unit_state(u)] - psi[:, u])
         worst = max(worst, unit.parameters.se_stiffness * float(np.max(stretch)))
     return worst
 

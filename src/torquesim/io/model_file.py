@@ -88,6 +88,9 @@ FIELD_DOCS = {
     "friction": "mu of the regularised Coulomb friction. [0, 5]",
     "slip_speed": "m/s, v_s of the friction regularisation. (0, 1]",
     "deactivation_time": "s, tau_deact of da/dt (Thelen 2003: 0.050). (0, 1]",
+    "second_joint": "a two-joint unit: the adjacent joint it also spans",
+    "second_arm": "its moment arm there relative to the one at joint, signed (+: towards "
+                  "that joint's positive way). [-2, 2]",
     **{name: allowed_text(name) for name in UNIT_FIELDS},
 }
 SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads",
@@ -98,8 +101,8 @@ LOAD_KEYS = ("name", "mass", "distance", "inertia")
 JOINT_KEYS = ("name", "initial_angle", "endstop_torque", "endstop_angle_scale",
               "endstop_lower_angle", "endstop_upper_angle", "coordinate", "initial_speed",
               "positive")
-UNIT_KEYS = ("name", "joint", "direction", "activation", "activation_dynamics",
-             *TorqueGeneratorUnit.field_names())
+UNIT_KEYS = ("name", "joint", "direction", "second_joint", "second_arm", "activation",
+             "activation_dynamics", *TorqueGeneratorUnit.field_names())
 DYNAMICS_KEYS = ("activation_time", "deactivation_time")
 TOP_KEYS = ("name", "duration", "gravity", "base_angle", "notes", "base", "segments", "joints",
             "units", "points", "contacts")
@@ -291,10 +294,15 @@ def _unit(i: int, table: dict) -> Unit:
         defaults = ActivationDynamics()
         dynamics = _build(ActivationDynamics, key, _table(key, table["activation_dynamics"]),
                           {k: getattr(defaults, k) for k in DYNAMICS_KEYS})
+    spans = {}
+    if "second_joint" in table:
+        spans["second_joint"] = _text(f"{prefix}.second_joint", table["second_joint"])
+    if "second_arm" in table:
+        spans["second_arm"] = _number(f"{prefix}.second_arm", table["second_arm"])
     try:
         return Unit(_text(f"{prefix}.name", table["name"]), _text(f"{prefix}.joint",
                                                                  table["joint"]),
-                    DIRECTIONS[direction], parameters, activation, dynamics)
+                    DIRECTIONS[direction], parameters, activation, dynamics, **spans)
     except ModelError as exc:
         raise exc.under(prefix) from None
 
@@ -425,6 +433,9 @@ def model_to_toml(model) -> str:
         lines += ["", "[[units]]", f"name = {_value(unit.name)}",
                   f"joint = {_value(unit.joint)}",
                   _direction_line(unit, positive[unit.joint])]
+        if unit.second_joint is not None:
+            lines += [f"second_joint = {_value(unit.second_joint)}  "
+                      f"# {FIELD_DOCS['second_joint']}", _line("second_arm", unit.second_arm)]
         lines += [_line(k, v) for k, v in unit.parameters.as_dict().items()]
         profile = unit.activation
         lines += ["[units.activation]",

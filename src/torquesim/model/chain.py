@@ -74,6 +74,8 @@ from .unit_row import (  # noqa: F401  (the packed unit row, read here as chain.
     UNIT_DIRECTION,
     UNIT_JOINT,
     UNIT_ROW_SIZE,
+    UNIT_SECOND_ARM,
+    UNIT_SECOND_JOINT,
     UNIT_STATE_OFFSET,
 )
 
@@ -94,6 +96,8 @@ RESERVED_COLUMNS = ("time", *BASE_COORDINATES, *(f"{c}_speed" for c in BASE_COOR
 BASE_SPEED_LIMIT = 100.0
 JOINT_ARRAY_SIZE = JOINT_ROW_SIZE  # end stops, zero offset, speed limit (model.body)
 FLEXOR, EXTENSOR = 1, -1
+#: Largest |moment arm ratio| of a two-joint unit at its second joint (`Unit.second_arm`).
+MAX_SECOND_ARM = 2.0
 #: A joint speed above this many times its fastest unit's ω_max is physically impossible.
 SPEED_LIMIT_FACTOR = 10.0
 
@@ -340,6 +344,15 @@ class Unit:
         None (default, the abstract's model): the activation is the profile, a = e(t). Else
         a follows e(t) with first-order dynamics and is a state of the unit, starting at the
         profile's initial level (at rest, a = e).
+    second_joint : str or None
+        A two-joint unit (a gastrocnemius, hamstrings, rectus femoris): the adjacent joint it
+        also spans. None (default): it spans ``joint`` only.
+    second_arm : float
+        Its moment arm r at ``second_joint`` relative to the one at ``joint`` (signed: +
+        pulls towards the second joint's positive way), dimensionless, |r| ≤ 2. Its torque T
+        acts as δ·T at ``joint`` and r·T at ``second_joint``, and its SE stretch is
+        s = δ·(θ_cc − ψ) with ψ = q_joint + δ·r·q_second the unit's angle (docs/model.md
+        §7.4). 0 with no second joint.
     """
 
     name: str
@@ -348,6 +361,8 @@ class Unit:
     parameters: TorqueGeneratorUnit
     activation: ActivationProfile
     activation_dynamics: ActivationDynamics | None = None
+    second_joint: str | None = None
+    second_arm: float = 0.0
 
     def __post_init__(self) -> None:
         check_name("name", self.name)
@@ -363,6 +378,17 @@ class Unit:
         if self.activation_dynamics is not None and \
                 not isinstance(self.activation_dynamics, ActivationDynamics):
             raise ModelError("activation_dynamics", "must be an ActivationDynamics or None")
+        if self.second_joint is None:
+            if self.second_arm != 0.0:
+                raise ModelError("second_arm", f"{self.second_arm!r} without a second_joint; "
+                                 "allowed: 0, or name the second_joint")
+        else:
+            check_name("second_joint", self.second_joint)
+            if self.second_joint == self.joint:
+                raise ModelError("second_joint", f"{self.second_joint!r} is the unit's joint; "
+                                 "allowed: another, adjacent joint")
+            check_range("second_arm", self.second_arm, -MAX_SECOND_ARM, MAX_SECOND_ARM)
+            object.__setattr__(self, "second_arm", float(self.second_arm))
 
     @property
     def kind(self) -> str:
@@ -375,8 +401,8 @@ class PackedChain(NamedTuple):
 
     segments : (n, 4)  A_k, B_k, L_k, g·B_k (see `ChainModel.pack`)
     joints : (n, 6)    end stops, zero offset and speed limit
-    units : (U, 23)    TorqueGeneratorUnit array, then joint index, direction, state offset
-                       and activation time constants (`model.unit_row`)
+    units : (U, 25)    TorqueGeneratorUnit array, then joint index, direction, state offset,
+                       activation time constants, second joint and its arm (`model.unit_row`)
     activations : (U, P)  packed activation profiles [a_0, n, (t_on, r, level) × n]
     """
 
@@ -490,12 +516,33 @@ class ChainModel:
                 raise ModelError(f"units[{i}].joint", f"{unit.joint!r} is the free base's "
                                  "joint, which carries no units; allowed: "
                                  f"{', '.join(joint_names[1:])}")
+            if unit.second_joint is not None:
+                self._check_second_joint(i, unit, joint_names, free_joint)
+                if unit.activation.initial_level is None:
+                    raise ModelError(f"units[{i}].activation.initial_level", "\"equilibrium\" "
+                                     "for a two-joint unit; allowed: a level in [0, 1] (the "
+                                     "one-joint units at its joints hold the rest)")
         for joint in self.joints:
             if joint.name != free_joint and not any(u.joint == joint.name for u in self.units):
                 raise ModelError(f"joints.{joint.name}", "has no torque generator unit; "
                                  "allowed: at least one unit per joint")
         self._check_output_names()
         self.initial_state()  # raises if the start cannot be held
+
+    def _check_second_joint(self, i: int, unit: Unit, joint_names: list[str],
+                            free_joint: str | None) -> None:
+        """A two-joint unit spans two adjacent joints (one moves the segment the other's
+        segment hangs from), neither the free base's."""
+        key = f"units[{i}].second_joint"
+        parents = self.parents
+        k = joint_names.index(unit.joint)
+        neighbours = [j for j in range(len(joint_names))
+                      if (parents[j] == k or parents[k] == j) and joint_names[j] != free_joint]
+        allowed = ", ".join(joint_names[j] for j in neighbours) or "none: no adjacent joint"
+        if unit.second_joint not in joint_names or \
+                joint_names.index(unit.second_joint) not in neighbours:
+            raise ModelError(key, f"{unit.second_joint!r} is not a joint adjacent to "
+                             f"{unit.joint!r} (sharing a segment with it); allowed: {allowed}")
 
     def _check_tree(self) -> None:
         names = [seg.name for seg in self.segments]
@@ -801,10 +848,24 @@ class ChainModel:
         a motion; the solvers stop there (and at an angle more than a full turn beyond the
         end stops)."""
         overall = max((u.parameters.max_velocity for u in self.units), default=10.0)
-        fastest = [max((u.parameters.max_velocity for u in self.units if u.joint == j.name),
-                       default=overall) for j in self.joints]
+        fastest = [max((u.parameters.max_velocity for u in self.units
+                        if j.name in (u.joint, u.second_joint)), default=overall)
+                   for j in self.joints]
         return np.array([BASE_SPEED_LIMIT] * self.n_base
                         + [SPEED_LIMIT_FACTOR * w for w in fastest])
+
+    def unit_angles(self, q) -> np.ndarray:
+        """Each unit's angle ψ_u = q_joint + δ·r·q_second, rad (its joint's angle for a
+        one-joint unit; `Unit.second_arm`), at joint angles ``q`` (rad; the last axis the
+        joints, any leading axes kept)."""
+        q = np.asarray(q, dtype=float)
+        out = np.empty(q.shape[:-1] + (self.n_units,))
+        for i, unit in enumerate(self.units):
+            out[..., i] = q[..., self.joint_index(unit.joint)]
+            if unit.second_joint is not None:
+                out[..., i] += unit.direction * unit.second_arm \
+                    * q[..., self.joint_index(unit.second_joint)]
+        return out
 
     def unit_array(self) -> np.ndarray:
         out = np.zeros((self.n_units, UNIT_ROW_SIZE))
@@ -812,6 +873,9 @@ class ChainModel:
             out[i, :UNIT_JOINT] = unit.parameters.to_array()
             out[i, UNIT_JOINT] = self.n_base + self.joint_index(unit.joint)  # its coordinate
             out[i, UNIT_DIRECTION] = unit.direction
+            out[i, UNIT_SECOND_JOINT] = out[i, UNIT_JOINT] if unit.second_joint is None \
+                else self.n_base + self.joint_index(unit.second_joint)
+            out[i, UNIT_SECOND_ARM] = unit.second_arm
             out[i, UNIT_STATE_OFFSET] = self.layout.unit_offset(i)
             if unit.activation_dynamics is not None:
                 out[i, UNIT_ACTIVATION_TIME] = unit.activation_dynamics.activation_time
@@ -1021,6 +1085,15 @@ class ChainModel:
         theta_cc = np.zeros(nu)
         levels = np.zeros(nu)
         torques = np.zeros(nu)
+        # two-joint units have given levels: isometric at their rest stretch, at both joints
+        spanning = [i for i, u in enumerate(self.units) if u.second_joint is not None]
+        psi = self.unit_angles(q0)
+        for i in spanning:
+            unit = self.units[i]
+            levels[i] = float(unit.activation.initial_level)
+            s = _rest_stretch(unit, psi[i], levels[i])
+            torques[i] = unit.parameters.se_stiffness * s
+            theta_cc[i] = psi[i] + unit.direction * s
         for j, joint in enumerate(self.joints):
             if self.base == "free" and j == 0:
                 continue  # the free base's joint: no units, nothing to hold
@@ -1030,7 +1103,14 @@ class ChainModel:
                 needed = segments[0, SEG_GRAVITY] * math.sin(self.base_angle + q) - passive
             else:
                 needed = -gravity[j] - passive
-            mine = [i for i, u in enumerate(self.units) if u.joint == joint.name]
+            for i in spanning:  # what the two-joint units hold here
+                unit = self.units[i]
+                if unit.joint == joint.name:
+                    needed -= unit.direction * torques[i]
+                elif unit.second_joint == joint.name:
+                    needed -= unit.second_arm * torques[i]
+            mine = [i for i, u in enumerate(self.units)
+                    if u.joint == joint.name and u.second_joint is None]
             pending = [i for i in mine if self.units[i].activation.initial_level is None]
             carrier = None
             if not pending:

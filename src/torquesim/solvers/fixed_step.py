@@ -43,7 +43,6 @@ from ..model.unit_row import (
     UNIT_ACTIVATION_TIME,
     UNIT_DEACTIVATION_TIME,
     UNIT_DIRECTION,
-    UNIT_JOINT,
     UNIT_ROW_SIZE,
 )
 from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
@@ -64,12 +63,14 @@ from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     TOLERANCE,
 )
 from .rates import (
+    add_unit_torque,
     check_unit_kinds,
     flat_arrays,
     joint_muscle_torques,
+    unit_angle,
+    unit_angle_at,
     unit_excitation,
-    unit_joint,
-    unit_joint_torque,
+    unit_joints,
     unit_rates,
 )
 from .sdirk import unit_implicit_ce_velocity
@@ -267,14 +268,14 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                 torque[j] = 0.0
             for u in range(nu):
                 i = unit_state(n, units, u)
-                j = unit_joint(units, u)
-                torque[j] += unit_joint_torque(stage[j], stage[i], units, u)
+                psi = unit_angle_at(stage, units, u)
+                add_unit_torque(torque, psi, stage[i], units, u)
                 if s == 0:
                     guess = _predict(seen[3, u], seen4_before[u], seen[0, u])
                 else:
                     guess = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
                 k[s, i], level_rate, now[s, u], tau = unit_rates(
-                    stage[j], stage, i, levels[at, u], guess, units, u, dynamics)
+                    psi, stage, i, levels[at, u], guess, units, u, dynamics)
                 if dynamics is not None:
                     if has_activation_state(units, u):
                         k[s, i + 1] = level_rate
@@ -373,11 +374,13 @@ def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dyna
             for i in range(c, size):
                 stage[i] = y_new[i] + lag * b[_K1 + s - 1, i] if s > 0 else y_new[i]
             for u in range(nu):
-                j = unit_joint(units, u)
+                j, j2 = unit_joints(units, u)
                 i = unit_state(n, units, u)
                 guess = b[_W4, u] if s == 0 else b[_W1 + s - 1, u]
+                psi = unit_angle(y[j] + b[_Q_SLOPE, j] / h * (s0 + lag),
+                                 y[j2] + b[_Q_SLOPE, j2] / h * (s0 + lag), units, u)
                 b[_K1 + s, i], level_rate, b[_W1 + s, u], b[_TAU, u] = unit_rates(
-                    y[j] + b[_Q_SLOPE, j] / h * (s0 + lag), stage, i,
+                    psi, stage, i,
                     unit_excitation(t + s0 + lag, profiles, width, u), guess, units, u,
                     dynamics)
                 if dynamics is not None:
@@ -408,12 +411,13 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
     solves = 0
     for u in range(nu):
         o = u * UNIT_ROW_SIZE
-        j = int(units[o + UNIT_JOINT])
+        j, j2 = unit_joints(units, u)
         d = units[o + UNIT_DIRECTION]
         dynamic = False
         if dynamics is not None:
             dynamic = has_activation_state(units, u)
         rate = b[_Q_SLOPE, j] / h
+        rate2 = b[_Q_SLOPE, j2] / h
         i = unit_state(n, units, u)
         x = y[i]
         a = y[i + 1] if dynamic else 0.0
@@ -429,7 +433,7 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
                     known = x + d * ((hs - gh) * w)  # a_21·h = (1 − γ)h
                     known_a = a + (hs - gh) * level_rate
                 at = s + (gh if stage == 0 else hs)  # c·h: γh, then h
-                q = y[j] + rate * at
+                q = unit_angle(y[j] + rate * at, y[j2] + rate2 * at, units, u)
                 level = unit_excitation(t + at, profiles, width, u)
                 if dynamic:  # the stage activation, then its rate
                     stage_a = implicit_activation(known_a, level, gh,
@@ -474,11 +478,11 @@ def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, wo
             b[_TORQUE, j] = 0.0
         for u in range(nu):
             i = unit_state(n, units, u)
-            j = unit_joint(units, u)
-            b[_TORQUE, j] += unit_joint_torque(stage[j], stage[i], units, u)
+            psi = unit_angle_at(stage, units, u)
+            add_unit_torque(b[_TORQUE], psi, stage[i], units, u)
             guess = b[_OMEGA, u] if s == 0 else b[_W1 + s - 1, u]
             b[_K1 + s, i], level_rate, b[_W1 + s, u], b[_TAU, u] = unit_rates(
-                stage[j], stage, i, unit_excitation(at, profiles, width, u), guess, units, u,
+                psi, stage, i, unit_excitation(at, profiles, width, u), guess, units, u,
                 dynamics)
             if dynamics is not None:
                 if has_activation_state(units, u):
@@ -546,10 +550,10 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
             b[_TORQUE0, j] = 0.0
         for u in range(nu):
             i = unit_state(n, units, u)
-            j = unit_joint(units, u)
-            b[_TORQUE0, j] += unit_joint_torque(y[j], y[i], units, u)
+            psi = unit_angle_at(y, units, u)
+            add_unit_torque(b[_TORQUE0], psi, y[i], units, u)
             b[_RATE, i], level_rate, b[_OMEGA, u], tau = unit_rates(
-                y[j], y, i, unit_excitation(t, profiles, width, u), b[_OMEGA, u], units, u,
+                psi, y, i, unit_excitation(t, profiles, width, u), b[_OMEGA, u], units, u,
                 dynamics)
             if dynamics is not None:
                 if has_activation_state(units, u):

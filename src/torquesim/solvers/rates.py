@@ -3,10 +3,15 @@
 State y = (q, q̇, every unit's own states; `torquesim.model.state`). Body part: (q, q̇) with
 input the joint muscle torques; muscle part: the units' states (θ_cc, and a with activation
 dynamics) with input the joint angles q. Unit u acts on joint j with direction d
-(+1 flexor, −1 extensor):
+(+1 flexor, −1 extensor) and, a two-joint unit, on the adjacent joint j2 with the signed
+moment arm r (its row of the moment-arm matrix: d at j, r at j2; `model.unit_row`):
 
-    SE stretch s_u = d·(θ_cc,u − q_j),   unit torque T_u = k·max(s_u, 0),
-    joint torque τ_j = Σ_u d·T_u,         dθ_cc,u/dt = d·ω_cc,u
+    unit angle ψ_u = q_j + d·r·q_j2,      SE stretch s_u = d·(θ_cc,u − ψ_u),
+    unit torque T_u = k·max(s_u, 0),       joint torques τ_j += d·T_u, τ_j2 += r·T_u,
+    dθ_cc,u/dt = d·ω_cc,u
+
+(r = 0 for a one-joint unit: ψ = q_j and nothing is added at a second joint, so its
+arithmetic is the one-joint formulation's, bit for bit).
 
 with ω_cc,u the CE velocity solving the CE equation (positive = concentric). ``guess`` (rad/s)
 is a solver's prediction of a CE velocity: it only seeds the root finder (NaN: no guess).
@@ -39,28 +44,57 @@ from ..model.unit_row import (
     UNIT_DIRECTION,
     UNIT_JOINT,
     UNIT_ROW_SIZE,
+    UNIT_SECOND_ARM,
+    UNIT_SECOND_JOINT,
 )
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_joint(units, u):
-    """Index of the joint unit u acts on."""
-    return int(units[u * UNIT_ROW_SIZE + UNIT_JOINT])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def unit_stretch(q_joint, theta_cc, units, u):
-    """SE stretch of unit u at CE angle ``theta_cc`` and joint angle ``q_joint`` (of the
-    joint it acts on): d·(θ_cc − q_j), rad."""
-    return units[u * UNIT_ROW_SIZE + UNIT_DIRECTION] * (theta_cc - q_joint)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def unit_joint_torque(q_joint, theta_cc, units, u):
-    """Unit u's torque at its joint, d·k·max(s, 0), N·m (flexion positive)."""
+def unit_joints(units, u):
+    """(j, j2): the indices of the coordinates unit u acts on (j2 = j: one joint)."""
     o = u * UNIT_ROW_SIZE
-    return units[o + UNIT_DIRECTION] * unit_torque(unit_stretch(q_joint, theta_cc, units, u),
-                                                   units, o)
+    return int(units[o + UNIT_JOINT]), int(units[o + UNIT_SECOND_JOINT])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unit_angle(q_joint, q_second, units, u):
+    """Unit u's angle ψ = q_j + d·r·q_j2, rad, from the angles of its joint and of its second
+    joint (the first again for a one-joint unit: r = 0, ψ = q_j). The branch on r = 0 keeps
+    one-joint units on their former arithmetic (measured: the elbow's step 1.01× with it,
+    1.06× computing d·r·q_j2 = 0 always)."""
+    o = u * UNIT_ROW_SIZE
+    r = units[o + UNIT_SECOND_ARM]
+    if r == 0.0:
+        return q_joint
+    return q_joint + units[o + UNIT_DIRECTION] * r * q_second
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unit_angle_at(q, units, u):
+    """`unit_angle` read from the coordinates ``q`` (a state or any array indexed as y)."""
+    j, j2 = unit_joints(units, u)
+    return unit_angle(q[j], q[j2], units, u)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unit_stretch(psi, theta_cc, units, u):
+    """SE stretch of unit u at CE angle ``theta_cc`` and unit angle ``psi`` (`unit_angle`; the
+    joint angle for a one-joint unit): d·(θ_cc − ψ), rad."""
+    return units[u * UNIT_ROW_SIZE + UNIT_DIRECTION] * (theta_cc - psi)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def add_unit_torque(torque, psi, theta_cc, units, u):
+    """Add unit u's torque T = k·max(s, 0) to the joint torques (N·m, flexion positive) by its
+    row of the moment-arm matrix: d·T at its joint, r·T at its second joint (none for a
+    one-joint unit, r = 0)."""
+    o = u * UNIT_ROW_SIZE
+    j, j2 = unit_joints(units, u)
+    tension = unit_torque(unit_stretch(psi, theta_cc, units, u), units, o)
+    torque[j] += units[o + UNIT_DIRECTION] * tension
+    r = units[o + UNIT_SECOND_ARM]
+    if r != 0.0:
+        torque[j2] += r * tension
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -71,9 +105,9 @@ def unit_excitation(t, profiles, width, u):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_rates(q_joint, y, i, excitation, guess, units, u, dynamics):
+def unit_rates(psi, y, i, excitation, guess, units, u, dynamics):
     """The rates of unit u whose states start at y[i] (θ_cc; then a, with activation
-    dynamics), at joint angle ``q_joint`` and profile value ``excitation``:
+    dynamics), at unit angle ``psi`` (`unit_angle`) and profile value ``excitation``:
     (dθ_cc/dt, da/dt, ω_cc, τ) in rad/s, 1/s, rad/s, s.
 
     This is the one place a unit's activation is read: its profile value e(t) without
@@ -86,7 +120,7 @@ def unit_rates(q_joint, y, i, excitation, guess, units, u, dynamics):
     o = u * UNIT_ROW_SIZE
     theta_cc = y[i]
     level = excitation if dynamics is None else unit_level(excitation, y, i, units, u)
-    w, tau = unit_ce_velocity_and_time_constant(unit_stretch(q_joint, theta_cc, units, u),
+    w, tau = unit_ce_velocity_and_time_constant(unit_stretch(psi, theta_cc, units, u),
                                                 theta_cc, level, units, guess, o)
     level_rate = 0.0
     if dynamics is not None:
@@ -125,14 +159,14 @@ def flat_arrays(seg, joints, units, profiles):
 
 @njit(cache=True, error_model="numpy")
 def joint_muscle_torques(q, x, units, n_units, out, n_joints):
-    """τ_j = Σ_{units on j} d·k·max(s, 0), N·m, into out[:n_joints], at joint angles q and
-    unit states from the state vector x (θ_cc,u = x[unit_state(n, units, u)]). (Outside the
-    step loops; the loops sum `unit_joint_torque` themselves.)"""
+    """τ = Σ_u (row u of the moment-arm matrix)·T_u, N·m, into out[:n_joints], at joint angles
+    q and unit states from the state vector x (θ_cc,u = x[unit_state(n, units, u)]).
+    (Outside the step loops; the loops add `add_unit_torque` themselves.)"""
     for j in range(n_joints):
         out[j] = 0.0
     for u in range(n_units):
-        j = unit_joint(units, u)
-        out[j] += unit_joint_torque(q[j], x[unit_state(n_joints, units, u)], units, u)
+        add_unit_torque(out, unit_angle_at(q, units, u), x[unit_state(n_joints, units, u)],
+                        units, u)
 
 
 def chain_derivative(t, y, seg, joints, units, profiles):
@@ -161,7 +195,7 @@ def compiled_derivative(t, y, seg, joints, units, profiles, general_body, free_b
             dy[n + k] = work[n * n + k]
     for u in range(nu):
         i = unit_state(n, units, u)
-        dy[i], level_rate, _, _ = unit_rates(y[unit_joint(units, u)], y, i,
+        dy[i], level_rate, _, _ = unit_rates(unit_angle_at(y, units, u), y, i,
                                              unit_excitation(t, profiles, width, u), np.nan,
                                              units, u, True)
         if has_activation_state(units, u):

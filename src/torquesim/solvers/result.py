@@ -30,8 +30,8 @@ from .fixed_step import RK4_STABILITY_LIMIT
 from .rates import (
     flat_arrays,
     joint_muscle_torques,
+    unit_angle_at,
     unit_excitation,
-    unit_joint,
     unit_level,
     unit_stretch,
 )
@@ -43,7 +43,8 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
     """Per row of ``states`` (y): fill ``unit_out`` (rows × U × 5) with each unit's torque T
     (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s), CE time constant τ (s) and
     profile value e(t);
-    and ``joint_out`` (rows × n × 2) with each joint's net muscle torque Σ d·T and end-stop
+    and ``joint_out`` (rows × n × 2) with each joint's net muscle torque (Σ over units of the
+    moment arm × T) and end-stop
     torque T_p (N·m). Takes the 2-D arrays of `PackedChain`."""
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
     torque = np.empty(n)
@@ -66,7 +67,7 @@ def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joi
             o = u * UNIT_ROW_SIZE
             k = unit_state(n, units, u)
             theta_cc = y[k]
-            stretch = unit_stretch(y[unit_joint(units, u)], theta_cc, units, u)
+            stretch = unit_stretch(unit_angle_at(y, units, u), theta_cc, units, u)
             excitation = unit_excitation(time[i], profiles, width, u)
             level = max(unit_level(excitation, y, k, units, u), ACTIVATION_FLOOR)
             w = unit_ce_velocity(stretch, theta_cc, level, units, np.nan, o)
