@@ -28,14 +28,15 @@ PAGES = {
     "docs/tutorial.md": {"cold-start"},
     "docs/concepts.md": {"techniques"},
     "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",
-                        "motion-squat-jump", "motion-countermovement-jump"},
+                        "motion-squat-jump", "motion-countermovement-jump",
+                        "motion-squat-jump-biarticular"},
     "docs/model.md": {"contacts-squat-jump"},
     "README.md": {"test-suite"},
     "docs/index.md": {"test-suite"},
 }
 #: The presets whose motion `preset_motion_blocks` describes, in page order.
 MOTION_PRESETS = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump",
-                  "countermovement-jump")
+                  "countermovement-jump", "squat-jump-biarticular")
 
 
 def techniques_block() -> str:

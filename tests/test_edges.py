@@ -96,8 +96,8 @@ def test_every_model_help_lists_every_preset(command):
     help left out builtin:squat-jump)."""
     text = " ".join(CliRunner().invoke(cli, [*command, "--help"], terminal_width=200)
                     .output.split())
-    for name in PRESETS:
-        assert f"builtin:{name}" in text, (command, name)
+    for name in PRESETS:  # (a name may wrap after a hyphen)
+        assert f"builtin:{name}" in text.replace("- ", "-"), (command, name)
     assert "|" not in text.partition("--model")[2].partition("--")[0]
 
 

@@ -203,6 +203,7 @@ def jump_motion(name: str = "squat-jump", sample_interval: float = 0.005) -> Tar
 BUILTIN_TARGETS = {
     "squat-jump": jump_motion,
     "countermovement-jump": lambda: jump_motion("countermovement-jump"),
+    "squat-jump-biarticular": lambda: jump_motion("squat-jump-biarticular"),
     "curl": min_jerk_curl,
     "elbow-curl": min_jerk_curl,
     "knee-extension": lambda: raise_hold_lower({"knee": (90.0, 15.0)},
