@@ -352,7 +352,7 @@ class Unit:
         pulls towards the second joint's positive way), dimensionless, |r| ≤ 2. Its torque T
         acts as δ·T at ``joint`` and r·T at ``second_joint``, and its SE stretch is
         s = δ·(θ_cc − ψ) with ψ = q_joint + δ·r·q_second the unit's angle (docs/model.md
-        §7.4). 0 with no second joint.
+        §7, two-joint units). 0 with no second joint.
     """
 
     name: str
