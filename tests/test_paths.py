@@ -91,3 +91,28 @@ def test_points_and_contacts_are_paths():
     with pytest.raises(ts.ModelError, match="sink") as info:  # the model's own check
         set_parameter(jump, "toe.stiffness", 1e-3)
     assert info.value.field == "toe.stiffness"
+
+
+def test_a_two_joint_unit_s_moment_arm_is_a_path():
+    """``UNIT.second_arm`` reaches a two-joint unit's moment-arm ratio r, and the changed
+    model's unit angle is ψ = q_j + d·r·q_j2 with the new r (r = 0: its own joint's angle);
+    a one-joint unit has no second arm, a ratio beyond ±2 is refused naming the path."""
+    model = ts.load_model("builtin:squat-jump-biarticular")
+    gastrocnemius = model.units[model.unit_index("gastrocnemius")]
+    assert get_parameter(model, "gastrocnemius.second_arm") == gastrocnemius.second_arm
+    q = np.linspace(-0.4, 0.7, model.n_coordinates)
+    j, j2 = model.joint_index(gastrocnemius.joint), model.joint_index("knee")
+    u = model.unit_index("gastrocnemius")
+    for r in (0.0, 0.3, -1.2):
+        changed = set_parameter(model, "units.gastrocnemius.second_arm", r)
+        assert changed.units[u].second_arm == r
+        assert changed.unit_angles(q)[u] == pytest.approx(
+            q[j] + gastrocnemius.direction * r * q[j2], abs=1e-15)
+    assert canonical_path(model, "units.gastrocnemius.second_arm") == \
+        "gastrocnemius.second_arm"
+    with pytest.raises(ts.ModelError, match="spans one joint") as info:
+        get_parameter(model, "plantarflexors.second_arm", "--vary")
+    assert info.value.field == "--vary"
+    with pytest.raises(ts.ModelError, match=r"allowed \[-2, 2\]") as info:
+        set_parameter(model, "gastrocnemius.second_arm", 2.5)
+    assert info.value.field == "gastrocnemius.second_arm"

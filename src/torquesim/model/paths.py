@@ -9,6 +9,7 @@ A path is dot-separated:
                                 ``elbow_flexor.se_stiffness`` (units by name or alias:
                                 ``flexor``, ``elbow.extensor``; see `ChainModel.unit_aliases`)
 ``UNIT.initial_level``          a unit's initial activation (when it has one)
+``UNIT.second_arm``             a two-joint unit's moment-arm ratio r at its second joint
 ``UNIT.activation_time``,       τ_act, τ_deact of a unit with activation dynamics (s)
 ``UNIT.deactivation_time``
 ``UNIT.rampN.delay|duration|level``  the N-th activation ramp of a unit (N from 1)
@@ -42,7 +43,8 @@ from .torque_generator import TorqueGeneratorUnit
 RAMP_FIELDS = tuple(f.name for f in fields(Ramp))
 DYNAMICS_FIELDS = tuple(f.name for f in fields(ActivationDynamics))
 _RAMP = re.compile(r"ramp(\d+)")
-HELP = ("UNIT.FIELD, UNIT.initial_level, UNIT.rampN.delay|duration|level, "
+HELP = ("UNIT.FIELD, UNIT.initial_level, UNIT.second_arm (two-joint), "
+        "UNIT.rampN.delay|duration|level, "
         "UNIT.activation_time|deactivation_time, JOINT.FIELD, SEGMENT.FIELD, "
         "SEGMENT.LOAD.mass|distance|inertia, POINT.distance|offset, "
         "POINT.stiffness|exponent|damping|friction|slip_speed (its contact), gravity, "
@@ -91,6 +93,11 @@ def _locate(model: ChainModel, path: str, field: str):
             unit = model.units[model.unit_index(units[head])]
             if len(rest) == 1 and rest[0] in unit_fields | {"initial_level"}:
                 return "unit", unit.name, rest
+            if rest == ["second_arm"]:
+                if unit.second_joint is None:
+                    raise ModelError(field, f"{path!r}: unit {unit.name} spans one joint; "
+                                     "allowed: a two-joint unit (one with a second_joint)")
+                return "geometry", unit.name, rest
             if len(rest) == 1 and rest[0] in DYNAMICS_FIELDS:
                 if unit.activation_dynamics is None:
                     raise ModelError(field, f"{path!r}: unit {unit.name} has no activation "
@@ -141,6 +148,8 @@ def _value(model: ChainModel, kind: str, owner: str, rest: list):
                        rest[1])
     if kind == "dynamics":
         return getattr(model.units[model.unit_index(owner)].activation_dynamics, rest[0])
+    if kind == "geometry":
+        return getattr(model.units[model.unit_index(owner)], rest[0])
     if kind == "joint":
         return getattr(model.joints[model.joint_index(owner)], rest[0])
     if kind == "point":
@@ -184,6 +193,8 @@ def set_parameter(model: ChainModel, path: str, value: float,
                                                                     initial_level=value))
             return model.replace_unit(owner, parameters=replace(unit.parameters,
                                                                 **{rest[0]: value}))
+        if kind == "geometry":
+            return model.replace_unit(owner, **{rest[0]: value})
         if kind == "dynamics":
             dynamics = model.units[model.unit_index(owner)].activation_dynamics
             return model.replace_unit(owner, activation_dynamics=replace(dynamics,
