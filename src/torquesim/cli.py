@@ -672,15 +672,16 @@ def compare(model_path, steps, repeats, out_dir, vary, quiet):
 
 
 def _parse_pairs(values, option: str, example: str) -> dict[str, str]:
-    """``KEY=VALUE`` options as a dict of strings."""
+    """``KEY=VALUE`` options as a dict of strings (`parse_assignment`, the one syntax of
+    ``--vary``, ``--bound`` and ``--freeze``); a key given twice is an error."""
+    from .model.paths import parse_assignment
+
     out = {}
     for text in values:
-        key, eq, value = text.partition("=")
-        if not eq or not key.strip() or not value.strip():
-            raise ModelError(option, f"{text!r}: allowed KEY=VALUE, e.g. {example}")
-        if key.strip() in out:
-            raise ModelError(option, f"{key.strip()!r} is given twice; allowed: once")
-        out[key.strip()] = value.strip()
+        key, value = parse_assignment(text, option, example)
+        if key in out:
+            raise ModelError(option, f"{key!r} is given twice; allowed: once")
+        out[key] = value
     return out
 
 
