@@ -45,6 +45,7 @@ from ..model.unit_row import (
     UNIT_DIRECTION,
     UNIT_ROW_SIZE,
 )
+from . import tableaus  # the module: coupling_layout's SDIRK2 is the muscle solver's code
 from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     BODY_FIRST,
     COUPLING_SIZE,
@@ -90,28 +91,35 @@ STATS_SIZE = 17
 # Status codes. DIVERGED: the state left the physically possible range (a joint more than a
 # full turn beyond its end stops, or faster than its speed limit, ChainModel.speed_limits).
 OK, NON_FINITE, DIVERGED = 0, 1, 2
-#: Real-axis stability limit of classical RK4: |λ|·h ≤ 2.785 (the boundary of its region).
+#: Real-axis stability limit of classical RK4: |λ|·h ≤ 2.785 (where |R(−x)| of its tableau
+#: reaches 1, `tableaus.RK4.real_stability_limit`; tests/test_tableaus.py checks the two).
 RK4_STABILITY_LIMIT = 2.785293563405282
 
-#: Diagonal coefficient γ = 1 − 1/√2 of the L-stable two-stage SDIRK method of order 2.
-SDIRK_GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
+#: Diagonal coefficient γ = 1 − 1/√2 of the L-stable two-stage SDIRK method of order 2
+#: (`tableaus.SDIRK2`; its a_21 = 1 − γ, its b the last row of A).
+SDIRK_GAMMA = tableaus.SDIRK2.a[0][0]
+
+#: Stage times of classical RK4 as fractions of the step (`tableaus.RK4`; a_{s,s−1} = c_s,
+#: every other entry of A zero), a constant tuple to the compiled loops.
+_RK4_C = tableaus.RK4.c
 
 
-# Classical RK4, written once: its tableau has c = (0, 1/2, 1/2, 1), a_{s,s−1} = c_s (every
-# stage starts from y plus c_s·h times the previous stage's derivative) and weights
-# b = (1/6, 1/3, 1/3, 1/6). Every RK4 in this module (monolithic, the body part, the muscle
-# part, the every-stage exchange) takes its stage offsets and its combination from these two
-# inlined functions over scalars (measured: no slower than the loops written out).
+# Classical RK4 (`tableaus.RK4`), written once: every stage starts from y plus c_s·h times
+# the previous stage's derivative, and the step adds h·Σ b_s·k_s. Every RK4 in this module
+# (monolithic, the body part, the muscle part, the every-stage exchange) takes its stage
+# offsets and its combination from these two inlined functions over scalars (measured: no
+# slower than the loops written out).
 @njit(cache=True, error_model="numpy", inline="always")
 def rk4_stage_offset(s, h):
     """c_s·h: stage ``s``'s time after the step start, and the multiple of the previous
     stage's derivative added to y to form it (0, h/2, h/2, h)."""
-    return 0.0 if s == 0 else (0.5 * h if s < 3 else h)
+    return _RK4_C[s] * h
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def rk4_increment(k1, k2, k3, k4, h):
-    """h·Σ b_s·k_s of one component: h/6·(k1 + 2·(k2 + k3) + k4)."""
+    """h·Σ b_s·k_s of one component with RK4's b = (1/6, 1/3, 1/3, 1/6), factored as
+    h/6·(k1 + 2·(k2 + k3) + k4) (tests/test_tableaus.py holds it to the tableau's b)."""
     return h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
 #: Rows of the scratch array of the partitioned loop (each row as long as the state).
 (_K1, _K2, _K3, _K4, _STAGE, _W1, _W2, _W3, _W4, _TAU, _Q, _TORQUE, _TORQUE0,
@@ -324,7 +332,7 @@ def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free
             factor = rk4_stage_offset(s, h)
             for i in range(m):
                 b[_STAGE, i] = y[i] + factor * b[_K1 + s - 1, i]
-        fraction = 0.0 if s == 0 else (0.5 if s < 3 else 1.0)
+        fraction = _RK4_C[s]
         for j in range(n):
             b[_TORQUE, j] = b[_TORQUE0, j] + fraction * b[_TORQUE_SLOPE, j] if s > 0 \
                 else b[_TORQUE0, j]

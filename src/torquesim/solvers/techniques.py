@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .coupling import IMEX, Coupling
+from .tableaus import RK4, SDIRK2
 
 #: SciPy solvers (``scipy.integrate`` classes) usable on the whole system (``scipy:NAME``);
 #: ``reference`` is Radau.
@@ -67,7 +68,7 @@ def scipy_solver(method: str) -> str | None:
 _EXPLICIT = "body RK4 and muscles RK4, each on its own, exchanging"
 TECHNIQUES: tuple[Technique, ...] = (
     Technique("monolithic", "monolithic", None,
-              "one state vector (q, q̇, θ_cc), classical RK4", 4, headline=True),
+              "one state vector (q, q̇, θ_cc), classical RK4", RK4.order, headline=True),
     Technique("partitioned", "partitioned", Coupling(),
               f"{_EXPLICIT} at step starts (Jacobi, zero-order hold)", 1, headline=True),
     Technique("partitioned[body-first]", "partitioned", Coupling(order="body-first"),
@@ -83,7 +84,7 @@ TECHNIQUES: tuple[Technique, ...] = (
               f"{_EXPLICIT}, 3 sweeps per step (waveform relaxation)", 2),
     Technique("partitioned[every-stage]", "partitioned", Coupling(order="every-stage"),
               "body and muscles exchanging at every RK4 stage (monolithic RK4 by another "
-              "route)", 4, in_study=False),
+              "route)", RK4.order, in_study=False),
     Technique("partitioned[sdirk2]", "partitioned", Coupling(muscle_solver="sdirk2"),
               "body RK4, muscles implicit SDIRK2, exchanging at step starts (zero-order hold)",
               1, "muscles", in_study=False),
@@ -148,13 +149,13 @@ def fixed_step_techniques() -> tuple[Technique, ...]:
 
 
 def coupling_order(coupling: Coupling) -> int:
-    """Global order of a partitioned run under ``coupling`` on smooth problems: 4 when it
-    exchanges at every RK4 stage; else 1 with a zero-order hold and one sweep, 2 with linear
-    extrapolation or repeated sweeps; SDIRK2 muscles at most 2."""
+    """Global order of a partitioned run under ``coupling`` on smooth problems: RK4's (4) when
+    it exchanges at every RK4 stage; else 1 with a zero-order hold and one sweep, 2 with linear
+    extrapolation or repeated sweeps; with SDIRK2 muscles at most SDIRK2's (2)."""
     if coupling.order == "every-stage":
-        return 4
+        return RK4.order
     order = 2 if (coupling.predictor == "linear" or coupling.iterations > 1) else 1
-    return min(order, 2) if coupling.implicit_muscles else order
+    return min(order, SDIRK2.order) if coupling.implicit_muscles else order
 
 
 def nominal_order(method: str, coupling: Coupling | None) -> int:
