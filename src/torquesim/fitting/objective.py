@@ -104,11 +104,11 @@ def sample_joint(states, step, times, joint, n, theta_out, omega_out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def simulate_population(first, stride, population, loop, coupling, y0, step, n_steps, seg,
+def simulate_population(first, count, population, loop, coupling, y0, step, n_steps, seg,
                         joints, units, levels, explicit_muscles, ground_steps, states,
                         activations, outputs, status):
-    """Simulate the rows first, first + stride, … of ``population`` (m × 9U ramp vectors,
-    `fitting.parameters`) with
+    """Simulate the ``count`` rows from row ``first`` of ``population`` (m × 9U ramp vectors,
+    `fitting.parameters`; fewer at its end) with
     the step loop the switches ``loop`` choose (`fixed_step.step_loop_switches`), unit u
     starting at ``levels[u]``. Fills, per candidate j: ``states[j]`` (steps + 1 rows of y),
     ``status[j]`` (`run_status`), the profiles' values at the first
@@ -122,7 +122,7 @@ def simulate_population(first, stride, population, loop, coupling, y0, step, n_s
     the step loops' reference counting on arrays shared between threads would contend
     (measured: the population scored 2.3x slower)."""
     n = joints.shape[0]
-    for j in range(first, population.shape[0], stride):
+    for j in range(first, min(first + count, population.shape[0])):
         seg_j, joints_j, units_j = seg.copy(), joints.copy(), units.copy()
         y0_j, coupling_j = y0.copy(), coupling.copy()
         profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
@@ -164,9 +164,9 @@ def _pool(threads: int) -> ThreadPoolExecutor:
     first use; a forked child process makes its own, `os.register_at_fork` below).
 
     Threads calling a compiled function that releases the GIL, rather than Numba's
-    ``parallel=True``: the same speed (the jump's 64 candidates 486–570 ms against
-    494–613 ms, three interleaved runs each, load 1.0–1.2) at 6 s less compile time per
-    population kernel (the elbow fit's first evaluation 32.0 → 25.8 s, cold cache): a
+    ``parallel=True``: the same speed within this machine's noise (64 candidates, best of 5
+    in interleaved rounds at load 1.0–1.2: the jump 486–570 against 494–613 ms; the elbow
+    29.0–37.4 against 29.2–37.7 ms) at 6 s less compile time per population kernel (the elbow fit's first evaluation 32.0 → 25.8 s, cold cache): a
     parallel function's outlined loop body is compiled and optimised again with everything it
     calls."""
     return ThreadPoolExecutor(threads, thread_name_prefix="torquesim-population")
@@ -182,7 +182,8 @@ def run_population(rows, loop, coupling, y0, step: float, n_steps: int, arrays, 
     (states, activations, ground outputs, status), the activations at the first
     ``activation_steps`` steps and the ground outputs at ``ground_steps`` (indices).
     The candidates run in Numba's number of threads (`numba.get_num_threads`, one in a Dask
-    worker), candidate j in thread j mod threads (`_pool`)."""
+    worker), each thread a contiguous block of them, as Numba's parallel loop scheduled
+    them (`_pool`)."""
     m, steps = rows.shape[0], n_steps + 1
     states = np.empty((m, steps, y0.size))
     activations = np.empty((m, levels.size, activation_steps))
@@ -190,11 +191,12 @@ def run_population(rows, loop, coupling, y0, step: float, n_steps: int, arrays, 
     status = np.zeros(m, dtype=np.int64)
     ground_steps = np.asarray(ground_steps, dtype=np.int64)
     threads = min(numba.get_num_threads(), m)
+    block = -(-m // threads)  # candidates per thread, rounded up
 
-    def run(first):
-        simulate_population(first, threads, rows, loop, coupling, y0, step, n_steps, *arrays,
-                            levels, explicit_muscles, ground_steps, states, activations,
-                            outputs, status)
+    def run(thread):
+        simulate_population(thread * block, block, rows, loop, coupling, y0, step, n_steps,
+                            *arrays, levels, explicit_muscles, ground_steps, states,
+                            activations, outputs, status)
     if threads == 1:
         run(0)
     else:
