@@ -166,9 +166,9 @@ def _pool(threads: int) -> ThreadPoolExecutor:
     Threads calling a compiled function that releases the GIL, rather than Numba's
     ``parallel=True``: the same speed within this machine's noise (64 candidates, best of 5
     in interleaved rounds at load 1.0–1.2: the jump 486–570 against 494–613 ms; the elbow
-    29.0–37.4 against 29.2–37.7 ms) at 6 s less compile time per population kernel (the elbow fit's first evaluation 32.0 → 25.8 s, cold cache): a
-    parallel function's outlined loop body is compiled and optimised again with everything it
-    calls."""
+    29.0–37.4 against 29.2–37.7 ms) at 6 s less compile time per population kernel (the
+    elbow fit's first evaluation 32.0 → 25.8 s, cold cache): a parallel function's outlined
+    loop body is compiled and optimised again with everything it calls."""
     return ThreadPoolExecutor(threads, thread_name_prefix="torquesim-population")
 
 
