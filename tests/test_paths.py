@@ -116,3 +116,23 @@ def test_a_two_joint_unit_s_moment_arm_is_a_path():
     with pytest.raises(ts.ModelError, match=r"allowed \[-2, 2\]") as info:
         set_parameter(model, "gastrocnemius.second_arm", 2.5)
     assert info.value.field == "gastrocnemius.second_arm"
+
+
+def test_the_fit_and_the_optimiser_read_ramp_names_as_paths(arm):
+    """The fit's ``--bound``/``--freeze`` and the optimiser's ``--free``/``--bound`` take ramp
+    parameters in the path vocabulary: an alias, the optional ``units.`` group word; a unit or
+    one of its ramps selects all its parameters; an unknown ramp is one error naming it."""
+    space = ParameterSpace.for_model(arm)
+    assert space.resolve("units.shoulder.flexor.ramp2.delay") == "shoulder_flexor.ramp2.delay"
+    assert space.with_bounds("units.elbow_flexor.ramp1.level", 0.1, 0.6).lower[
+        space.index("elbow_flexor.ramp1.level")] == 0.1
+    assert space.select("units.shoulder.flexor.ramp2") == [
+        "shoulder_flexor.ramp2.delay", "shoulder_flexor.ramp2.duration",
+        "shoulder_flexor.ramp2.level"]
+    assert space.select("elbow_extensor") == [n for n in space.names
+                                              if n.startswith("elbow_extensor.")]
+    for path in ("units.elbow_flexor.ramp1.delay", "elbow.flexor.ramp1.delay"):
+        assert canonical_path(arm, path) == space.select(path)[0]
+    with pytest.raises(ts.ModelError, match="no ramp 4") as info:
+        space.select("elbow_flexor.ramp4", "free")
+    assert info.value.field == "free"

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import ModelError, check_range
 from ..model.activation import ActivationProfile, Ramp
+from ..model.paths import without_group
 
 RAMPS_PER_UNIT = 3
 RAMP_FIELDS = ("delay", "duration", "level")
@@ -119,13 +120,30 @@ class ParameterSpace:
         return len(self.units) * PER_UNIT
 
     def resolve(self, name: str, what: str = "parameter") -> str:
-        """The canonical name of ``name`` (a unit alias replaced by the unit's name)."""
-        unit, dot, rest = name.rpartition(".ramp")
+        """The canonical name of the parameter path ``name`` (`torquesim.model.paths`: a unit
+        alias replaced by the unit's name, an optional leading ``units.`` dropped)."""
+        unit, dot, rest = without_group(name).rpartition(".ramp")
         canonical = f"{self.aliases.get(unit, unit)}{dot}{rest}"
         if canonical not in self.names:
             raise ModelError(what, f"{name!r} is not a parameter; allowed: {NAME_HELP} "
                              f"{', '.join(self.units)}")
         return canonical
+
+    def select(self, path: str, what: str = "parameter") -> list[str]:
+        """The parameter names ``path`` selects: all of a unit's (``UNIT``), one ramp's
+        (``UNIT.rampK``) or one (``UNIT.rampK.FIELD``), a unit by name or alias, an optional
+        leading ``units.``; a `ModelError` on ``what`` for a path that names none."""
+        bare = without_group(path)
+        unit = self.aliases.get(bare, bare)
+        if unit in self.units:
+            return [n for n in self.names if n.startswith(unit + ".ramp")]
+        head, dot, ramp = bare.rpartition(".")
+        if dot and ramp.startswith("ramp") and ramp[4:].isdigit():
+            if int(ramp[4:]) not in range(1, RAMPS_PER_UNIT + 1):
+                raise ModelError(what, f"{path!r}: no ramp {ramp[4:]}; allowed ramp1 to "
+                                 f"ramp{RAMPS_PER_UNIT} of a unit ({', '.join(self.units)})")
+            return [self.resolve(f"{bare}.{f}", what) for f in RAMP_FIELDS]
+        return [self.resolve(bare, what)]
 
     def index(self, name: str) -> int:
         return self.names.index(self.resolve(name))

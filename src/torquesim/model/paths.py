@@ -54,11 +54,21 @@ POINT_FIELDS = tuple(f.name for f in fields(Point) if f.name not in ("name", "se
 CONTACT_FIELDS = tuple(f.name for f in fields(GroundContact) if f.name != "point")
 
 
+#: The optional first word of a path naming the kind of thing it names.
+GROUPS = ("units", "joints", "segments", "points", "contacts")
+
+
 def _parts(path: str) -> list[str]:
     parts = path.strip().split(".")
-    if parts[0] in ("units", "joints", "segments", "points", "contacts") and len(parts) >= 3:
+    if parts[0] in GROUPS and len(parts) >= 3:
         parts = parts[1:]
     return parts
+
+
+def without_group(path: str) -> str:
+    """``path`` stripped, without its optional leading ``units.``, ``joints.``, … (the form
+    the fit's and the optimiser's parameter names take)."""
+    return ".".join(_parts(path))
 
 
 def _unit_names(model: ChainModel) -> dict[str, str]:

@@ -43,7 +43,6 @@ from ..fitting.objective import (
 from ..fitting.parameters import (
     HARD_LIMITS,
     PER_UNIT,
-    RAMP_FIELDS,
     RAMPS_PER_UNIT,
     ParameterSpace,
     held_profiles,
@@ -129,22 +128,6 @@ def three_ramps(model: ChainModel) -> ChainModel:
                                                               strict=True)))
 
 
-def _parameters_of(space: ParameterSpace, path: str, field: str) -> list[str]:
-    """The parameter names ``path`` selects: a unit, ``UNIT.rampK`` or one parameter; a
-    `ModelError` on ``field`` (``free``, ``frozen`` or ``bounds``) for a path that names
-    none."""
-    unit = space.aliases.get(path, path)
-    if unit in space.units:
-        return [n for n in space.names if n.startswith(unit + ".ramp")]
-    head, dot, ramp = path.rpartition(".")
-    if dot and ramp.startswith("ramp") and ramp[4:].isdigit():
-        if int(ramp[4:]) not in range(1, RAMPS_PER_UNIT + 1):
-            raise ModelError(field, f"{path!r}: no ramp {ramp[4:]}; allowed ramp1 to "
-                             f"ramp{RAMPS_PER_UNIT} of a unit ({', '.join(space.units)})")
-        return [space.resolve(f"{path}.{f}", field) for f in RAMP_FIELDS]
-    return [space.resolve(path, field)]
-
-
 def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=None,
                     bounds=None) -> ParameterSpace:
     """The searched space around the parameter vector ``start`` of the 3-ramp ``model``
@@ -157,7 +140,7 @@ def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=No
                        strict=True)
     lower, upper = list(lower), list(upper)
     for path, (low, high) in (bounds or {}).items():
-        for name in _parameters_of(space, path, "bounds"):
+        for name in space.select(path, "bounds"):
             i = names.index(name)
             if not low <= start[i] <= high:
                 raise ModelError(f"bounds.{path}", f"[{low:g}, {high:g}] excludes the starting "
@@ -171,10 +154,10 @@ def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=No
             lower[i], upper[i] = HARD_LIMITS[n.rsplit(".", 1)[1]]
     chosen = set(names)
     if free:
-        chosen = {n for path in free for n in _parameters_of(space, path, "free")}
+        chosen = {n for path in free for n in space.select(path, "free")}
     held = {n: float(start[i]) for i, n in enumerate(names) if n not in chosen}
     for path, value in (frozen or {}).items():
-        for name in _parameters_of(space, path, "frozen"):
+        for name in space.select(path, "frozen"):
             held[name] = float(start[names.index(name)]) if value is None else float(value)
     space = ParameterSpace(units=space.units, lower=tuple(lower), upper=tuple(upper),
                            frozen={**pinned, **held}, aliases=space.aliases)
