@@ -160,8 +160,9 @@ def _ground_outputs_of_run(states, rows, n, seg, joints, out, free_base, tree):
 
 @cache
 def _pool(threads: int) -> ThreadPoolExecutor:
-    """The threads that run a population's candidates (one pool per thread count, made on
-    first use; a forked child process makes its own, `os.register_at_fork` below).
+    """The threads that run a population's candidates beside the calling thread (one pool
+    per thread count, made on first use; a forked child process makes its own,
+    `os.register_at_fork` below).
 
     Threads calling a compiled function that releases the GIL, rather than Numba's
     ``parallel=True``: the same speed within this machine's noise (64 candidates, best of 5
@@ -183,7 +184,7 @@ def run_population(rows, loop, coupling, y0, step: float, n_steps: int, arrays, 
     ``activation_steps`` steps and the ground outputs at ``ground_steps`` (indices).
     The candidates run in Numba's number of threads (`numba.get_num_threads`, one in a Dask
     worker), each thread a contiguous block of them, as Numba's parallel loop scheduled
-    them (`_pool`)."""
+    them: this thread the first, the pool's (`_pool`) the others."""
     m, steps = rows.shape[0], n_steps + 1
     states = np.empty((m, steps, y0.size))
     activations = np.empty((m, levels.size, activation_steps))
@@ -197,10 +198,10 @@ def run_population(rows, loop, coupling, y0, step: float, n_steps: int, arrays, 
         simulate_population(thread * block, block, rows, loop, coupling, y0, step, n_steps,
                             *arrays, levels, explicit_muscles, ground_steps, states,
                             activations, outputs, status)
-    if threads == 1:
-        run(0)
-    else:
-        list(_pool(threads).map(run, range(threads)))
+    others = [_pool(threads - 1).submit(run, t) for t in range(1, threads)]
+    run(0)  # this thread takes the first block instead of waiting
+    for other in others:
+        other.result()
     return states, activations, outputs, status
 
 
