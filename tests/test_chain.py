@@ -258,6 +258,10 @@ def test_elbow_preset_reproduces_the_single_elbow_code(name):
     # 0.1 counted two implicit unit-equation residuals as one muscle evaluation; they are
     # counted apart now (Newton iterations)
     old_muscle = run.cost.rhs_muscle + math.ceil(run.cost.newton_iterations / 2)
+    if _FROZEN_RUNS[name].get("coupling") == ts.Coupling(order="every-stage"):
+        # it runs the monolithic loop now: 0.1's partitioned loop evaluated the muscles once
+        # more per step, at its start, for nothing but its stability guard
+        old_muscle += run.cost.steps
     assert [run.cost.steps, run.cost.rhs_body, old_muscle] == _FROZEN[f"{name}/cost"].tolist()
 
 

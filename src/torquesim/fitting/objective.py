@@ -29,6 +29,7 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from functools import cache
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -129,7 +130,7 @@ def simulate_population(first, count, population, loop, coupling, y0, step, n_st
         for u in range(levels.shape[0]):
             pack_profile(population[j], u * PER_UNIT, levels[u], profiles[u])
         stats = np.zeros(fs.STATS_SIZE)
-        fs.run_step_loop(*loop, y0_j, step, n_steps, seg_j, joints_j, units_j, profiles,
+        fs.run_step_loop(loop, (seg_j, joints_j, units_j, profiles), y0_j, step, n_steps,
                          coupling_j, states[j], stats)
         flat = profiles.ravel()
         for u in range(levels.shape[0]):
@@ -227,16 +228,41 @@ def sample_outputs(outputs, step, times, channels, out):
             out[r, k] = (1.0 - u) * outputs[c, i] + u * outputs[c, i + 1]
 
 
+class ResidualTerms(NamedTuple):
+    """What a fit's residual vector compares (module docstring), packed once per fit for the
+    compiled kernels: the target ``times`` (s, from the start); the ``scored`` coordinates'
+    indices; their target ``angles`` and ``speeds`` (rad, rad/s; a row per scored coordinate,
+    a column per time) and ``weights`` (summing to 1); the ground-output ``channels``
+    (indices into `GROUND_OUTPUTS`), their target ``channel_values`` and ``channel_scales``
+    s_c; each unit's rest level ``rests``; the weights w_ω, w_end and w_a."""
+
+    times: np.ndarray
+    scored: np.ndarray
+    angles: np.ndarray
+    speeds: np.ndarray
+    weights: np.ndarray
+    channels: np.ndarray
+    channel_values: np.ndarray
+    channel_scales: np.ndarray
+    rests: np.ndarray
+    weight_velocity: float
+    weight_end: float
+    weight_effort: float
+
+
 @njit(cache=True, error_model="numpy")
-def fill_residual(theta, omega, target_theta, target_omega, weights, weight_velocity,
-                  weight_end, weight_effort, profiles, rests, times, channel_values,
-                  target_channels, channel_scales, out):
-    """The residual vector of one simulated candidate (module docstring) into ``out``."""
+def fill_residual(theta, omega, channel_values, profiles, terms, out):
+    """The residual vector of one simulated candidate (module docstring) into ``out``: its
+    scored coordinates' q and q̇ (``theta``, ``omega``) and ground outputs
+    (``channel_values``) at the target times, its packed activation ``profiles``, compared
+    by the `ResidualTerms` ``terms``."""
     n_rows, n_samples = theta.shape
+    target_theta, target_omega = terms.angles, terms.speeds
+    weight_velocity, weight_end = terms.weight_velocity, terms.weight_end
     i = 0
     scale = 1.0 / math.sqrt(n_samples)
     for r in range(n_rows):
-        w = math.sqrt(weights[r]) * DEG
+        w = math.sqrt(terms.weights[r]) * DEG
         for k in range(n_samples):
             out[i] = w * scale * (theta[r, k] - target_theta[r, k])
             i += 1
@@ -249,18 +275,18 @@ def fill_residual(theta, omega, target_theta, target_omega, weights, weight_velo
             out[i] = weight_end * w * (theta[r, last] - target_theta[r, last])
             out[i + 1] = weight_end * w * (omega[r, last] - target_omega[r, last])
             i += 2
-    if weight_effort > 0.0:
-        w = math.sqrt(weight_effort) * scale
+    if terms.weight_effort > 0.0:
+        w = math.sqrt(terms.weight_effort) * scale
         flat = profiles.ravel()
-        for u in range(rests.shape[0]):
+        for u in range(terms.rests.shape[0]):
             for k in range(n_samples):
-                out[i] = w * max(unit_excitation(times[k], flat, PROFILE_SIZE, u) - rests[u],
-                                 0.0)
+                out[i] = w * max(unit_excitation(terms.times[k], flat, PROFILE_SIZE, u)
+                                 - terms.rests[u], 0.0)
                 i += 1
     for r in range(channel_values.shape[0]):
-        w = channel_scales[r] * scale
+        w = terms.channel_scales[r] * scale
         for k in range(n_samples):
-            out[i] = w * (channel_values[r, k] - target_channels[r, k])
+            out[i] = w * (channel_values[r, k] - terms.channel_values[r, k])
             i += 1
 
 
@@ -273,19 +299,17 @@ def residual_size(n_rows: int, n_samples: int, n_units: int, weight_velocity: fl
 
 
 @njit(cache=True, error_model="numpy")
-def population_residuals(population, levels, states, outputs, status, step, n, rests,
-                         times, scored, target_theta, target_omega, weights, weight_velocity,
-                         weight_end, weight_effort, channels, target_channels,
-                         channel_scales, residuals, failed):
+def population_residuals(population, levels, states, outputs, status, step, n, terms,
+                         residuals, failed):
     """Residuals (rows of ``residuals``) and failure flags of every row of ``population``
     (m × 9U) from its run by `simulate_population` (``states`` of a body of ``n``
-    coordinates, ground ``outputs`` and ``status``): q and q̇ of the ``scored`` coordinates
-    at the target ``times`` by `sample_joint`, the ground outputs ``channels`` by
-    `sample_outputs`, the activations from
-    the candidate's ramps (`pack_profile`, unit u starting at ``levels[u]``). One thread:
-    sampling costs little beside the runs, and a parallel kernel would add a parallel
-    compilation (5 s) to a cold first fit."""
-    n_rows, n_samples = target_theta.shape
+    coordinates at ``step`` s, ground
+    ``outputs`` and ``status``), compared by the `ResidualTerms` ``terms``: q and q̇ of the
+    scored coordinates at the target times by `sample_joint`, the ground output channels by
+    `sample_outputs`, the activations from the candidate's ramps (`pack_profile`, unit u
+    starting at ``levels[u]``). One thread: sampling costs little beside the runs, and a
+    parallel kernel would add a parallel compilation (5 s) to a cold first fit."""
+    n_rows, n_samples = terms.angles.shape
     failed_value = FAILED_SCORE / math.sqrt(residuals.shape[1])
     for j in range(population.shape[0]):
         if status[j] != RUN_OK:
@@ -295,13 +319,11 @@ def population_residuals(population, levels, states, outputs, status, step, n, r
         theta = np.empty((n_rows, n_samples))
         omega = np.empty((n_rows, n_samples))
         for r in range(n_rows):
-            sample_joint(states[j], step, times, scored[r], n, theta[r], omega[r])
-        values = np.empty((channels.shape[0], n_samples))
-        sample_outputs(outputs[j], step, times, channels, values)
+            sample_joint(states[j], step, terms.times, terms.scored[r], n, theta[r], omega[r])
+        values = np.empty((terms.channels.shape[0], n_samples))
+        sample_outputs(outputs[j], step, terms.times, terms.channels, values)
         profiles = np.zeros((levels.shape[0], PROFILE_SIZE))
         for u in range(levels.shape[0]):
             pack_profile(population[j], u * PER_UNIT, levels[u], profiles[u])
-        fill_residual(theta, omega, target_theta, target_omega, weights, weight_velocity,
-                      weight_end, weight_effort, profiles, rests, times, values,
-                      target_channels, channel_scales, residuals[j])
+        fill_residual(theta, omega, values, profiles, terms, residuals[j])
         failed[j] = False

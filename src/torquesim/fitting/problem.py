@@ -191,6 +191,10 @@ class FitProblem:
         self.body_weight = base.weight
         self.channel_scales = np.array([self.weight_grf / self.body_weight if c.startswith("grf")
                                         else self.weight_com for c in channels])
+        self.terms = obj.ResidualTerms(
+            self.times, self.scored, self.target_angles, self.target_omega, self.weights,
+            self.channels, self.target_channels, self.channel_scales, self.rests,
+            float(self.weight_velocity), float(self.weight_end), float(self.weight_effort))
         self.residual_size = obj.residual_size(len(self.scored), self.times.size,
                                                len(base.units), self.weight_velocity,
                                                self.weight_end, self.weight_effort,
@@ -214,11 +218,8 @@ class FitProblem:
                 self.n_steps, self.arrays, self.levels, self.explicit_muscles, self.ground_steps)
             obj.population_residuals(
                 rows, self.levels, states, outputs, status, self.step,
-                self.arrays[1].shape[0],
-                self.rests, self.times, self.scored, self.target_angles, self.target_omega,
-                self.weights, self.weight_velocity, self.weight_end, self.weight_effort,
-                self.channels, self.target_channels, self.channel_scales,
-                out[begin:begin + m], failed[begin:begin + m])
+                self.arrays[1].shape[0], self.terms, out[begin:begin + m],
+                failed[begin:begin + m])
         self.simulations += population.shape[0]
         self.failed_simulations += int(failed.sum())
         return out, failed

@@ -26,7 +26,8 @@ class Coupling:
         ``"body-first"`` / ``"muscles-first"``: sequential (Gauss-Seidel), the second part sees
         the first part's new values (linearly interpolated over the step);
         ``"every-stage"``: exchange at every RK4 stage, which is monolithic RK4 written through
-        the two parts (a check, not a partitioned scheme).
+        the two parts (not a partitioned scheme: it runs the monolithic loop, and the other
+        options do not apply to it).
     predictor : str
         What a part sees of a signal not yet advanced in this step: ``"hold"`` (default,
         zero-order hold of the step-start value) or ``"linear"`` (extrapolated from the last

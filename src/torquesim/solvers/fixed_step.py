@@ -2,12 +2,13 @@
 coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX technique).
 
 The loops take the packed chain arrays (`PackedChain`), write
-the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices
-below). Scratch arrays are allocated once per run, the parameter arrays are read flat with row
-offsets, and the loops over units and joints sit in the step loops themselves, calling only
-loop-free inlined functions of `torquesim.solvers.rates`: a compiled helper holding a
-loop over array arguments costs Numba atomic reference counting at every call, which was
-measured to cost more than the model itself.
+the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array
+(`run_stats`). Scratch arrays are allocated once per run, the parameter arrays are read flat
+with row offsets. Every stage of the whole state is one `rates.system_rates`, the one
+assembly of the right-hand side; the parts' loops (body alone, muscles alone) call the
+loop-free inlined functions of `torquesim.solvers.rates` themselves. All of them are inlined:
+a compiled helper holding a loop over array arguments costs Numba atomic reference counting
+at every call, which was measured to cost more than the model itself.
 
 Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
 is evaluated (from the slope the CE root finder ends with, so at no extra cost) and the
@@ -20,7 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 from numba.extending import overload
 
 from ..model.activation import implicit_activation
@@ -35,8 +36,6 @@ from ..model.body import (
     contact_time_constant,
     single_segment_acceleration,
     switch,
-    switched_body,
-    tree_accelerations,
 )
 from ..model.state import has_activation_state, unit_state, unit_states_start
 from ..model.unit_row import (
@@ -67,30 +66,41 @@ from .rates import (
     add_unit_torque,
     check_unit_kinds,
     flat_arrays,
+    general_accelerations,
     joint_muscle_torques,
+    system_rates,
     unit_angle,
     unit_angle_at,
     unit_excitation,
     unit_joints,
     unit_rates,
 )
+from .run_stats import (  # noqa: F401  (the layout, read here as fs.NAME)
+    CONTACT_INDEX,
+    CONTACT_RATIO,
+    CONTACT_TIME,
+    COUPLING_ANGLE,
+    COUPLING_TIME,
+    COUPLING_TORQUE,
+    COUPLING_TORQUE_MAX,
+    DIVERGED,
+    IMPLICIT_SOLVES,
+    NEWTON_ITERATIONS,
+    NFEV_BODY,
+    NFEV_MUSCLE,
+    NON_FINITE,
+    OK,
+    STATS_SIZE,
+    STATUS,
+    STEPS,
+    SWEEPS,
+    WORST_RATIO,
+    WORST_TIME,
+    WORST_UNIT,
+    record_stiffness,
+)
 from .sdirk import unit_implicit_ce_velocity
 
-# Indices of the stats array returned by the loops.
-# NEWTON_ITERATIONS: residual evaluations of the implicit unit equations (each one a Newton
-# iteration with its scalar linear solve, or the bracket check); IMPLICIT_SOLVES: implicit stage
-# equations solved. COUPLING_*: the coupling-error indicator of the partitioned loop (see
-# rk4_partitioned): Σ over steps of max_j |δτ_j|·h (N·m·s), its largest term's |δτ| (N·m) and
-# time (s), and Σ over steps of max_j |δq_j| (rad).
-# CONTACT_*: the stability guard of the ground contacts (always explicit, in the body part):
-# the largest step/τ of a contact (`contact_time_constant`), its time and contact index.
-STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
-    NEWTON_ITERATIONS, IMPLICIT_SOLVES, COUPLING_TORQUE, COUPLING_TORQUE_MAX, COUPLING_TIME, \
-    COUPLING_ANGLE, CONTACT_RATIO, CONTACT_TIME, CONTACT_INDEX = range(17)
-STATS_SIZE = 17
-# Status codes. DIVERGED: the state left the physically possible range (a joint more than a
-# full turn beyond its end stops, or faster than its speed limit, ChainModel.speed_limits).
-OK, NON_FINITE, DIVERGED = 0, 1, 2
 #: Real-axis stability limit of classical RK4: |λ|·h ≤ 2.785 (where |R(−x)| of its tableau
 #: reaches 1, `tableaus.RK4.real_stability_limit`; tests/test_tableaus.py checks the two).
 RK4_STABILITY_LIMIT = 2.785293563405282
@@ -145,15 +155,6 @@ def _check_state(y, n, joints):
     return OK
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _record_stiffness(stats, t, ratio, u):
-    """Update the largest step/τ seen (the stability guard) with unit u's ratio at time t."""
-    if ratio > stats[WORST_RATIO]:
-        stats[WORST_RATIO] = ratio
-        stats[WORST_TIME] = t
-        stats[WORST_UNIT] = u
-
-
 @njit(cache=True, error_model="numpy")
 def _record_contacts(stats, t, h, y, n, seg, work):
     """Update the contacts' stability guard at state ``y`` (time t, step h), right after
@@ -164,16 +165,6 @@ def _record_contacts(stats, t, h, y, n, seg, work):
         stats[CONTACT_RATIO] = ratio
         stats[CONTACT_TIME] = t
         stats[CONTACT_INDEX] = c
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _predict(preceding, preceding_before, this_before):
-    """Guess for a stage's CE velocity, rad/s: the value of the same stage one step earlier,
-    shifted by the change of the preceding stage (stage 4 precedes stage 1) over that step.
-    Within 1e-6 rad/s of the root on the default curl at 0.1 ms, so the root finder takes one
-    step. The preceding stage's value while there is no history yet."""
-    guess = this_before + (preceding - preceding_before)
-    return guess if math.isfinite(guess) else preceding
 
 
 @njit(cache=True, error_model="numpy")
@@ -198,43 +189,15 @@ def check_body_kind(joints, seg, general_body, free_base, tree):
         raise ValueError("tree must be True exactly for a body that is not a serial chain")
 
 
-def _tree_solve(y, n, torque, seg, joints, work, free_base, tree):
-    """`tree_accelerations` for the body the switches name; see `_tree_solve_for_body`."""
-
-
-@overload(_tree_solve, inline="always")
-def _tree_solve_for_body(y, n, torque, seg, joints, work, free_base, tree):
-    """Choose the solve by the switches' types while compiling, so that a loop types and
-    compiles one copy of it (fixed or free base, serial chain or tree), not four behind
-    constant branches (the same run time, a quarter of the compile time)."""
-    free, serial = switched_body(free_base, tree)
-    nb = 2 if free else 0
-
-    def solve(y, n, torque, seg, joints, work, free_base, tree):
-        tree_accelerations(y, n, nb, serial, torque, seg, joints, work)
-    return solve
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, tree):
-    """q̈ of a body of two or more coordinates into dy[row, n:2n] (the general mass-matrix
-    solve, `tree_accelerations`); ``free_base`` and ``tree`` True or None (compile-time
-    switches, so a loop holds the solve of its own body only: free base or fixed, tree or
-    serial chain)."""
-    _tree_solve(y, n, torque, seg, joints, work, free_base, tree)
-    for k in range(n):
-        dy[row, n + k] = work[n * n + k]
-
-
 @njit(cache=True, error_model="numpy")
 def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                    general_body=None, dynamics=None, free_base=None, tree=None):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2).
 
-    Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
-    The activation profiles are evaluated once per stage time. Each stage seeds the CE root
-    finder with a prediction from the previous step (see `_predict`). ``general_body``: see
-    `check_body_kind`.
+    Every stage evaluates body and muscles together (`system_rates`). ``out`` has shape
+    (n_steps + 1, len(y)). The activation profiles are evaluated once per stage time. Each
+    stage seeds the CE root finder with a prediction from the previous step
+    (`rates.predict`). ``general_body``: see `check_body_kind`.
     """
     check_body_kind(joints, seg, general_body, free_base, tree)
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
@@ -274,33 +237,11 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                 for i in range(size):
                     stage[i] = y[i] + factor * k[s - 1, i]
             at = 0 if s == 0 else (1 if s < 3 else 2)
-            for j in range(n):
-                torque[j] = 0.0
-            for u in range(nu):
-                i = unit_state(n, units, u)
-                psi = unit_angle_at(stage, units, u)
-                add_unit_torque(torque, psi, stage[i], units, u)
-                if s == 0:
-                    guess = _predict(seen[3, u], seen4_before[u], seen[0, u])
-                else:
-                    guess = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
-                k[s, i], level_rate, now[s, u], tau = unit_rates(
-                    psi, stage, i, levels[at, u], guess, units, u, dynamics)
-                if dynamics is not None:
-                    if has_activation_state(units, u):
-                        k[s, i + 1] = level_rate
-                if s == 0:
-                    _record_stiffness(stats, t, h / tau, u)
-            for j in range(n):
-                k[s, j] = stage[n + j]
-            if general_body is not None:
-                _general_accelerations(stage, n, torque, seg, joints, work, k, s, free_base,
-                                       tree)
-                if free_base is not None:  # contacts exist only on a free base
-                    if s == 0 and contacts:
-                        _record_contacts(stats, t, h, stage, n, seg, work)
-            else:
-                k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
+            system_rates(stage, levels, at, seen, seen4_before, k, s, now, torque, work, stats,
+                         t, h, n, nu, seg, joints, units, general_body, dynamics, free_base, tree)
+            if free_base is not None:  # contacts exist only on a free base
+                if s == 0 and contacts:
+                    _record_contacts(stats, t, h, stage, n, seg, work)
         for u in range(nu):
             seen4_before[u] = seen[3, u]
             for s in range(4):
@@ -317,6 +258,7 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
             stats[STATUS] = status
             return
     stats[SWEEPS] = n_steps
+
 
 
 @njit(cache=True, error_model="numpy")
@@ -340,7 +282,7 @@ def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free
                 else b[_TORQUE0, j]
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body is not None:
-            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
+            general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
                                    free_base, tree)
             if free_base is not None:  # contacts exist only on a free base
                 if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
@@ -465,57 +407,8 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
 
 
 @njit(cache=True, error_model="numpy")
-def _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                         y_new, general_body, dynamics, stats, free_base, tree):
-    """One step with each part's own RK4 stages, exchanging values at every stage.
-
-    The body stage sees the torque of the muscle stage state and the muscle stage sees the
-    body stage angle: algebraically this is monolithic RK4, written through the two parts.
-    The CE velocities at the step start (b[_OMEGA]) seed the first stage's root finder.
-    """
-    size = y.shape[0]
-    stage = b[_STAGE]
-    for s in range(4):
-        if s == 0:
-            for i in range(size):
-                b[_STAGE, i] = y[i]
-        else:
-            factor = rk4_stage_offset(s, h)
-            for i in range(size):
-                b[_STAGE, i] = y[i] + factor * b[_K1 + s - 1, i]
-        at = t + rk4_stage_offset(s, h)
-        for j in range(n):
-            b[_TORQUE, j] = 0.0
-        for u in range(nu):
-            i = unit_state(n, units, u)
-            psi = unit_angle_at(stage, units, u)
-            add_unit_torque(b[_TORQUE], psi, stage[i], units, u)
-            guess = b[_OMEGA, u] if s == 0 else b[_W1 + s - 1, u]
-            b[_K1 + s, i], level_rate, b[_W1 + s, u], b[_TAU, u] = unit_rates(
-                psi, stage, i, unit_excitation(at, profiles, width, u), guess, units, u,
-                dynamics)
-            if dynamics is not None:
-                if has_activation_state(units, u):
-                    b[_K1 + s, i + 1] = level_rate
-        for j in range(n):
-            b[_K1 + s, j] = b[_STAGE, n + j]
-        if general_body is not None:
-            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
-                                   free_base, tree)
-            if free_base is not None:  # contacts exist only on a free base
-                if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
-                    _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
-        else:
-            b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
-                                                        joints)
-    for i in range(size):
-        y_new[i] = y[i] + rk4_increment(b[_K1, i], b[_K2, i], b[_K3, i], b[_K4, i], h)
-
-
-@njit(cache=True, error_model="numpy")
 def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                    general_body, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                    dynamics, free_base, tree):
+                    general_body, sdirk_muscles, rk4_muscles, dynamics, free_base, tree):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -525,13 +418,13 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     that is zero (hold), the previous step's change (linear extrapolation) or, once the other
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
     ``general_body``: see `check_body_kind`. The muscle solver (``sdirk_muscles`` or
-    ``rk4_muscles``) and the exchange (``stage_exchange``, the every-stage order, or
-    ``end_exchange``) are switches, True for the one the packed ``coupling`` names and None for
-    the other (`step_loop_switches`), so Numba compiles only the code a run needs.
+    ``rk4_muscles``) is a switch, True for the one the packed ``coupling`` names and None for
+    the other (`step_loop_switches`), so Numba compiles only the code a run needs. (The
+    every-stage exchange is monolithic RK4: `run_step_loop` runs it in `rk4_monolithic`.)
     """
     check_body_kind(joints, seg, general_body, free_base, tree)
     if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (sdirk_muscles is not None) or \
-            (int(coupling[ORDER]) == EVERY_STAGE) != (stage_exchange is not None):
+            int(coupling[ORDER]) == EVERY_STAGE:
         raise ValueError("the coupling array and the step loop's switches disagree")
     order = int(coupling[ORDER])
     predictor = int(coupling[PREDICTOR])
@@ -568,75 +461,68 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
             if dynamics is not None:
                 if has_activation_state(units, u):
                     b[_RATE, i + 1] = level_rate
-            _record_stiffness(stats, t, hm / tau, u)
+            record_stiffness(stats, t, hm / tau, u)
         stats[NFEV_MUSCLE] += 1
-        if stage_exchange is not None:
-            _stage_exchange_step(t, y, n, nu, h, seg, joints, units, profiles, width, work, b,
-                                 y1, general_body, dynamics, stats, free_base, tree)
-            stats[NFEV_BODY] += 4
-            stats[NFEV_MUSCLE] += 4
-            stats[SWEEPS] += 1
-        if end_exchange is not None:
-            for j in range(n):
-                if predictor == LINEAR and step > 0:
-                    b[_Q_SLOPE, j] = y[j] - q_prev[j]
-                    b[_TORQUE_SLOPE, j] = b[_TORQUE0, j] - torque_prev[j]
-                else:
-                    b[_Q_SLOPE, j] = 0.0
-                    b[_TORQUE_SLOPE, j] = 0.0
+        for j in range(n):
+            if predictor == LINEAR and step > 0:
+                b[_Q_SLOPE, j] = y[j] - q_prev[j]
+                b[_TORQUE_SLOPE, j] = b[_TORQUE0, j] - torque_prev[j]
+            else:
+                b[_Q_SLOPE, j] = 0.0
+                b[_TORQUE_SLOPE, j] = 0.0
+        for i in range(size):
+            y1[i] = y[i]
+        torque_jump = 0.0
+        angle_jump = 0.0
+        for sweep in range(sweeps):
             for i in range(size):
-                y1[i] = y[i]
+                b[_OLD, i] = y1[i]
+            if order == MUSCLES_FIRST:
+                _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
+                             sdirk_muscles, rk4_muscles, b, stats, y1, dynamics)
+                for j in range(n):
+                    b[_Q, j] = y[j] + b[_Q_SLOPE, j]
+                joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
+                for j in range(n):
+                    b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
+                _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base,
+                          tree)
+            else:
+                _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base,
+                          tree)
+                if order == BODY_FIRST:
+                    for j in range(n):
+                        b[_Q_SLOPE, j] = y1[j] - y[j]
+                _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
+                             sdirk_muscles, rk4_muscles, b, stats, y1, dynamics)
+            stats[NFEV_BODY] += 4
+            stats[SWEEPS] += 1
+            # Later sweeps see the other part's end-of-step values (waveform relaxation).
+            joint_muscle_torques(y1, y1, units, nu, b[_TORQUE], n)
+            # Coupling-error indicator (no extra evaluation): the jump between the joint
+            # torque the body integrated with at the step end and the torque the muscles
+            # give there, and between the angle the muscles integrated with and the body's.
             torque_jump = 0.0
             angle_jump = 0.0
-            for sweep in range(sweeps):
+            for j in range(n):
+                torque_jump = max(torque_jump, abs(b[_TORQUE0, j] + b[_TORQUE_SLOPE, j]
+                                                   - b[_TORQUE, j]))
+                angle_jump = max(angle_jump, abs(y[j] + b[_Q_SLOPE, j] - y1[j]))
+            for j in range(n):
+                b[_Q_SLOPE, j] = y1[j] - y[j]
+                b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
+            if sweep > 0 and tol > 0.0:
+                change = 0.0
                 for i in range(size):
-                    b[_OLD, i] = y1[i]
-                if order == MUSCLES_FIRST:
-                    _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
-                                 sdirk_muscles, rk4_muscles, b, stats, y1, dynamics)
-                    for j in range(n):
-                        b[_Q, j] = y[j] + b[_Q_SLOPE, j]
-                    joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
-                    for j in range(n):
-                        b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base,
-                              tree)
-                else:
-                    _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base,
-                              tree)
-                    if order == BODY_FIRST:
-                        for j in range(n):
-                            b[_Q_SLOPE, j] = y1[j] - y[j]
-                    _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
-                                 sdirk_muscles, rk4_muscles, b, stats, y1, dynamics)
-                stats[NFEV_BODY] += 4
-                stats[SWEEPS] += 1
-                # Later sweeps see the other part's end-of-step values (waveform relaxation).
-                joint_muscle_torques(y1, y1, units, nu, b[_TORQUE], n)
-                # Coupling-error indicator (no extra evaluation): the jump between the joint
-                # torque the body integrated with at the step end and the torque the muscles
-                # give there, and between the angle the muscles integrated with and the body's.
-                torque_jump = 0.0
-                angle_jump = 0.0
-                for j in range(n):
-                    torque_jump = max(torque_jump, abs(b[_TORQUE0, j] + b[_TORQUE_SLOPE, j]
-                                                       - b[_TORQUE, j]))
-                    angle_jump = max(angle_jump, abs(y[j] + b[_Q_SLOPE, j] - y1[j]))
-                for j in range(n):
-                    b[_Q_SLOPE, j] = y1[j] - y[j]
-                    b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                if sweep > 0 and tol > 0.0:
-                    change = 0.0
-                    for i in range(size):
-                        scale = h if n <= i < c else 1.0
-                        change = max(change, abs(y1[i] - b[_OLD, i]) * scale)
-                    if change <= tol:
-                        break
-            stats[COUPLING_TORQUE] += torque_jump * h
-            stats[COUPLING_ANGLE] += angle_jump
-            if torque_jump > stats[COUPLING_TORQUE_MAX]:
-                stats[COUPLING_TORQUE_MAX] = torque_jump
-                stats[COUPLING_TIME] = t + h
+                    scale = h if n <= i < c else 1.0
+                    change = max(change, abs(y1[i] - b[_OLD, i]) * scale)
+                if change <= tol:
+                    break
+        stats[COUPLING_TORQUE] += torque_jump * h
+        stats[COUPLING_ANGLE] += angle_jump
+        if torque_jump > stats[COUPLING_TORQUE_MAX]:
+            stats[COUPLING_TORQUE_MAX] = torque_jump
+            stats[COUPLING_TIME] = t + h
         for j in range(n):
             q_prev[j] = y[j]
             torque_prev[j] = b[_TORQUE0, j]
@@ -665,7 +551,7 @@ def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b
 
 #: Where the free-base and the tree switches are in `step_loop_switches`' tuple (compiled
 #: callers pass them on to `body.body_accelerations` and the ground outputs).
-SWITCH_FREE_BASE, SWITCH_TREE = 9, 10
+SWITCH_FREE_BASE, SWITCH_TREE = 7, 8
 
 
 def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
@@ -677,20 +563,27 @@ def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
     `ChainModel.has_activation_dynamics`), on a free base or not (``free_base``), a tree or a
     serial chain (``tree``).
 
-    Eleven values, True or None, in four pairs of which one is True: (monolithic, one segment),
-    (monolithic, chain), (partitioned, one segment), (partitioned, chain); SDIRK2 or RK4
-    muscles; exchange at every stage or at the step ends; then the activation-state switch
-    (`check_unit_kinds`), the free-base and the tree switches (`_general_accelerations`). None
-    is a type of its own to Numba, so a branch ``if switch is not None`` on a None switch is
-    removed when compiling, and a run compiles only its own code (a fit one loop and one muscle
-    solver, not all of them). The muscle and exchange pairs matter only to the partitioned loop."""
+    Nine values, True or None, in three pairs of which one is True: (monolithic, one segment),
+    (monolithic, chain), (partitioned, one segment), (partitioned, chain), of which one is
+    True; SDIRK2 or RK4 muscles (the partitioned loop's); then the activation-state switch
+    (`check_unit_kinds`), the free-base and the tree switches (`rates.general_accelerations`).
+    The partitioned technique exchanging at every stage is monolithic RK4 (docs/model.md §4)
+    and runs the monolithic loop. None is a type of its own to Numba, so a branch
+    ``if switch is not None`` on a None switch is removed when compiling, and a run compiles
+    only its own code (a fit one loop and one muscle solver, not all of them)."""
+    monolithic = monolithic or int(coupling[ORDER]) == EVERY_STAGE
     chain = n_coordinates > 1
     sdirk = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
-    stage = not monolithic and int(coupling[ORDER]) == EVERY_STAGE
     return (switch(monolithic and not chain), switch(monolithic and chain),
             switch(not monolithic and not chain), switch(not monolithic and chain),
-            switch(sdirk), switch(not sdirk), switch(stage), switch(not stage),
-            switch(dynamics), switch(free_base), switch(tree))
+            switch(sdirk), switch(not sdirk), switch(dynamics), switch(free_base),
+            switch(tree))
+
+
+def runs_monolithic_loop(switches: tuple) -> bool:
+    """Whether `step_loop_switches` chose `rk4_monolithic` (the every-stage exchange too: its
+    stability guard then sees the whole step, with no muscle sub-steps)."""
+    return switches[0] is not None or switches[1] is not None
 
 
 def model_step_loop(model, monolithic: bool, exchange) -> tuple:
@@ -701,36 +594,72 @@ def model_step_loop(model, monolithic: bool, exchange) -> tuple:
                               not model.is_serial)
 
 
-@njit(cache=True, error_model="numpy")
-def run_step_loop(monolithic_one, monolithic_chain, partitioned_one, partitioned_chain,
-                  sdirk_muscles, rk4_muscles, stage_exchange, end_exchange, dynamics,
-                  free_base, tree, y0, h, n_steps, seg, joints, units, profiles, coupling, out,
-                  stats):
-    """Run the step loop that the switches (`step_loop_switches`) choose: `rk4_monolithic` or
-    `rk4_partitioned`, for one segment or a chain, and in the partitioned loop its muscle
-    solver and exchange. Only the chosen code is compiled. (A dispatcher passed as an argument
-    would choose as well, but Numba's disk cache misses such compilations in every new
-    process; an integer made literal compiles every branch once before it specialises.)
-    Compiled callers (the fits' objectives) call it compiled; Python callers run its Python
-    code (``run_step_loop.py_func``), which calls the chosen loop's dispatcher directly, so
-    that the wrapper is not compiled around it (`torquesim.solvers.simulation`)."""
+def _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats):
+    """Run the loop the switches ``kinds`` choose, from Python (see `run_step_loop`; compiled
+    callers get `_run_chosen_compiled`'s choice)."""
+    (monolithic_one, monolithic_chain, partitioned_one, partitioned_chain, sdirk_muscles,
+     rk4_muscles, dynamics, free_base, tree) = kinds
+    seg, joints, units, profiles = system
     if monolithic_one is not None:
         rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
-                       dynamics=dynamics)  # general_body left out: its branch not compiled
-    # The chain loops get the switch itself, typed bool as a Python True is, not the literal
-    # True (typed Literal[bool](True)): a literal would compile a second copy of the loop for
-    # compiled callers (measured: the jump's IMEX loop compiled twice, 11–18 s each).
+                       dynamics=dynamics)
     if monolithic_chain is not None:
         rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                        monolithic_chain, dynamics, free_base, tree)
     if partitioned_one is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                        None, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                        dynamics, None, None)
+                        None, sdirk_muscles, rk4_muscles, dynamics, None, None)
     if partitioned_chain is not None:
         rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                        partitioned_chain, sdirk_muscles, rk4_muscles, stage_exchange, end_exchange,
-                        dynamics, free_base, tree)
+                        partitioned_chain, sdirk_muscles, rk4_muscles, dynamics, free_base,
+                        tree)
+
+
+@overload(_run_chosen, inline="always")
+def _run_chosen_compiled(kinds, system, y0, h, n_steps, coupling, out, stats):
+    """Choose the loop by the types of the switches in ``kinds`` while compiling: only the
+    chosen loop is typed and compiled, its switches passed on as the tuple's elements (typed
+    bool or None, as a Python True is typed: a literal True would compile a second copy of
+    the loop for compiled callers, measured: the jump's IMEX loop compiled twice, 11–18 s
+    each)."""
+    on = [not isinstance(kind, types.NoneType) for kind in kinds.types]
+    if on[0]:  # one segment: the general body's branch is not compiled
+        def monolithic_one(kinds, system, y0, h, n_steps, coupling, out, stats):
+            rk4_monolithic(y0, h, n_steps, system[0], system[1], system[2], system[3], out,
+                           stats, dynamics=kinds[6])
+        return monolithic_one
+    if on[1]:
+        def monolithic_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
+            rk4_monolithic(y0, h, n_steps, system[0], system[1], system[2], system[3], out,
+                           stats, kinds[1], kinds[6], kinds[7], kinds[8])
+        return monolithic_chain
+    if on[2]:
+        def partitioned_one(kinds, system, y0, h, n_steps, coupling, out, stats):
+            rk4_partitioned(y0, h, n_steps, system[0], system[1], system[2], system[3],
+                            coupling, out, stats, None, kinds[4], kinds[5], kinds[6], None,
+                            None)
+        return partitioned_one
+
+    def partitioned_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
+        rk4_partitioned(y0, h, n_steps, system[0], system[1], system[2], system[3], coupling,
+                        out, stats, kinds[3], kinds[4], kinds[5], kinds[6], kinds[7], kinds[8])
+    return partitioned_chain
+
+
+@njit(cache=True, error_model="numpy")
+def run_step_loop(kinds, system, y0, h, n_steps, coupling, out, stats):
+    """Run the step loop that the switches ``kinds`` (`step_loop_switches`) choose on the
+    packed model ``system`` = (segments, joints, units, profiles) (`PackedChain`):
+    `rk4_monolithic` or `rk4_partitioned` under the packed ``coupling``, for one segment or a
+    chain, and in the partitioned loop its muscle solver; y0 the initial state,
+    h the step (s), ``out`` (n_steps + 1 rows of y) and ``stats`` (`run_stats`) filled. Only
+    the chosen code is compiled. (A dispatcher passed as an argument would choose as well, but
+    Numba's disk cache misses such compilations in every new process; an integer made literal
+    compiles every branch once before it specialises.) Compiled callers (the population
+    kernel) call it compiled; Python callers run its Python code (``run_step_loop.py_func``),
+    which calls the chosen loop's dispatcher directly, so that the wrapper is not compiled
+    around it (`torquesim.solvers.simulation`)."""
+    _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats)
 
 
 def new_stats() -> np.ndarray:

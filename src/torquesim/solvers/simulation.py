@@ -175,18 +175,18 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     # the chosen loop is compiled, not also the wrapper around it (0.6 s of a cold start).
     run = fs.run_step_loop.py_func
     # A zero-step call compiles the loop (or loads it from the disk cache) outside the timing.
-    run(*switches, y0, float(step), 0, *packed, exchange, out, fs.new_stats())
+    run(switches, tuple(packed), y0, float(step), 0, exchange, out, fs.new_stats())
     start = _time.perf_counter()
-    run(*switches, y0, float(step), n, *packed, exchange, out, stats)
+    run(switches, tuple(packed), y0, float(step), n, exchange, out, stats)
     wall = _time.perf_counter() - start
     done = int(stats[fs.STEPS])
     times = np.arange(done + 1) * step
     implicit = partitioned and coupling.implicit_muscles
+    # the step the units are integrated at (the partitioned loop's muscle sub-steps)
+    muscle_step = step if fs.runs_monolithic_loop(switches) else step / coupling.muscle_substeps
     stability = StabilityReport(float(stats[fs.WORST_RATIO]), float(stats[fs.WORST_TIME]),
                                 model.units[int(stats[fs.WORST_UNIT])].name
-                                if model.units else "",
-                                step / (coupling.muscle_substeps if partitioned
-                                        else 1),
+                                if model.units else "", muscle_step,
                                 math.inf if implicit else fs.RK4_STABILITY_LIMIT)
     contact_ratio = float(stats[fs.CONTACT_RATIO])
     if contact_ratio / fs.RK4_STABILITY_LIMIT > stability.max_step_ratio / stability.limit:
@@ -211,8 +211,6 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
                    implicit_solves=int(stats[fs.IMPLICIT_SOLVES]))
     settings = {"step": step, "steps": n}
     if model.contacts:  # which part is stiff: the smallest time constant of each, s
-        muscle_step = stability.step if not stability.in_contact else \
-            step / (coupling.muscle_substeps if partitioned else 1)
         settings["unit_time_constant_min_s"] = muscle_step / float(stats[fs.WORST_RATIO]) \
             if stats[fs.WORST_RATIO] > 0 else math.inf
         settings["contact_time_constant_min_s"] = step / contact_ratio \
