@@ -2,13 +2,12 @@
 coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX technique).
 
 The loops take the packed chain arrays (`PackedChain`), write
-the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array
-(`run_stats`). Scratch arrays are allocated once per run, the parameter arrays are read flat
-with row offsets. Every stage of the whole state is one `rates.system_rates`, the one
-assembly of the right-hand side; the parts' loops (body alone, muscles alone) call the
-loop-free inlined functions of `torquesim.solvers.rates` themselves. All of them are inlined:
-a compiled helper holding a loop over array arguments costs Numba atomic reference counting
-at every call, which was measured to cost more than the model itself.
+the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices
+below). Scratch arrays are allocated once per run, the parameter arrays are read flat with row
+offsets, and the loops over units and joints sit in the step loops themselves, calling only
+loop-free inlined functions of `torquesim.solvers.rates`: a compiled helper holding a
+loop over array arguments costs Numba atomic reference counting at every call, which was
+measured to cost more than the model itself.
 
 Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
 is evaluated (from the slope the CE root finder ends with, so at no extra cost) and the
@@ -36,6 +35,8 @@ from ..model.body import (
     contact_time_constant,
     single_segment_acceleration,
     switch,
+    switched_body,
+    tree_accelerations,
 )
 from ..model.state import has_activation_state, unit_state, unit_states_start
 from ..model.unit_row import (
@@ -66,41 +67,30 @@ from .rates import (
     add_unit_torque,
     check_unit_kinds,
     flat_arrays,
-    general_accelerations,
     joint_muscle_torques,
-    system_rates,
     unit_angle,
     unit_angle_at,
     unit_excitation,
     unit_joints,
     unit_rates,
 )
-from .run_stats import (  # noqa: F401  (the layout, read here as fs.NAME)
-    CONTACT_INDEX,
-    CONTACT_RATIO,
-    CONTACT_TIME,
-    COUPLING_ANGLE,
-    COUPLING_TIME,
-    COUPLING_TORQUE,
-    COUPLING_TORQUE_MAX,
-    DIVERGED,
-    IMPLICIT_SOLVES,
-    NEWTON_ITERATIONS,
-    NFEV_BODY,
-    NFEV_MUSCLE,
-    NON_FINITE,
-    OK,
-    STATS_SIZE,
-    STATUS,
-    STEPS,
-    SWEEPS,
-    WORST_RATIO,
-    WORST_TIME,
-    WORST_UNIT,
-    record_stiffness,
-)
 from .sdirk import unit_implicit_ce_velocity
 
+# Indices of the stats array returned by the loops.
+# NEWTON_ITERATIONS: residual evaluations of the implicit unit equations (each one a Newton
+# iteration with its scalar linear solve, or the bracket check); IMPLICIT_SOLVES: implicit stage
+# equations solved. COUPLING_*: the coupling-error indicator of the partitioned loop (see
+# rk4_partitioned): Σ over steps of max_j |δτ_j|·h (N·m·s), its largest term's |δτ| (N·m) and
+# time (s), and Σ over steps of max_j |δq_j| (rad).
+# CONTACT_*: the stability guard of the ground contacts (always explicit, in the body part):
+# the largest step/τ of a contact (`contact_time_constant`), its time and contact index.
+STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
+    NEWTON_ITERATIONS, IMPLICIT_SOLVES, COUPLING_TORQUE, COUPLING_TORQUE_MAX, COUPLING_TIME, \
+    COUPLING_ANGLE, CONTACT_RATIO, CONTACT_TIME, CONTACT_INDEX = range(17)
+STATS_SIZE = 17
+# Status codes. DIVERGED: the state left the physically possible range (a joint more than a
+# full turn beyond its end stops, or faster than its speed limit, ChainModel.speed_limits).
+OK, NON_FINITE, DIVERGED = 0, 1, 2
 #: Real-axis stability limit of classical RK4: |λ|·h ≤ 2.785 (where |R(−x)| of its tableau
 #: reaches 1, `tableaus.RK4.real_stability_limit`; tests/test_tableaus.py checks the two).
 RK4_STABILITY_LIMIT = 2.785293563405282
@@ -118,9 +108,9 @@ _RK4_C = np.array(tableaus.RK4.c)
 
 # Classical RK4 (`tableaus.RK4`), written once: every stage starts from y plus c_s·h times
 # the previous stage's derivative, and the step adds h·Σ b_s·k_s. Every RK4 in this module
-# (monolithic, the body part, the muscle part, the every-stage exchange) takes its stage
-# offsets and its combination from these two inlined functions over scalars (measured: no
-# slower than the loops written out).
+# (monolithic, the body part, the muscle part) takes its stage offsets and its combination
+# from these two inlined functions over scalars (measured: no slower than the loops written
+# out).
 @njit(cache=True, error_model="numpy", inline="always")
 def rk4_stage_offset(s, h):
     """c_s·h: stage ``s``'s time after the step start, and the multiple of the previous
@@ -155,6 +145,15 @@ def _check_state(y, n, joints):
     return OK
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _record_stiffness(stats, t, ratio, u):
+    """Update the largest step/τ seen (the stability guard) with unit u's ratio at time t."""
+    if ratio > stats[WORST_RATIO]:
+        stats[WORST_RATIO] = ratio
+        stats[WORST_TIME] = t
+        stats[WORST_UNIT] = u
+
+
 @njit(cache=True, error_model="numpy")
 def _record_contacts(stats, t, h, y, n, seg, work):
     """Update the contacts' stability guard at state ``y`` (time t, step h), right after
@@ -165,6 +164,16 @@ def _record_contacts(stats, t, h, y, n, seg, work):
         stats[CONTACT_RATIO] = ratio
         stats[CONTACT_TIME] = t
         stats[CONTACT_INDEX] = c
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _predict(preceding, preceding_before, this_before):
+    """Guess for a stage's CE velocity, rad/s: the value of the same stage one step earlier,
+    shifted by the change of the preceding stage (stage 4 precedes stage 1) over that step.
+    Within 1e-6 rad/s of the root on the default curl at 0.1 ms, so the root finder takes one
+    step. The preceding stage's value while there is no history yet."""
+    guess = this_before + (preceding - preceding_before)
+    return guess if math.isfinite(guess) else preceding
 
 
 @njit(cache=True, error_model="numpy")
@@ -189,15 +198,43 @@ def check_body_kind(joints, seg, general_body, free_base, tree):
         raise ValueError("tree must be True exactly for a body that is not a serial chain")
 
 
+def _tree_solve(y, n, torque, seg, joints, work, free_base, tree):
+    """`tree_accelerations` for the body the switches name; see `_tree_solve_for_body`."""
+
+
+@overload(_tree_solve, inline="always")
+def _tree_solve_for_body(y, n, torque, seg, joints, work, free_base, tree):
+    """Choose the solve by the switches' types while compiling, so that a loop types and
+    compiles one copy of it (fixed or free base, serial chain or tree), not four behind
+    constant branches (the same run time, a quarter of the compile time)."""
+    free, serial = switched_body(free_base, tree)
+    nb = 2 if free else 0
+
+    def solve(y, n, torque, seg, joints, work, free_base, tree):
+        tree_accelerations(y, n, nb, serial, torque, seg, joints, work)
+    return solve
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, tree):
+    """q̈ of a body of two or more coordinates into dy[row, n:2n] (the general mass-matrix
+    solve, `tree_accelerations`); ``free_base`` and ``tree`` True or None (compile-time
+    switches, so a loop holds the solve of its own body only: free base or fixed, tree or
+    serial chain)."""
+    _tree_solve(y, n, torque, seg, joints, work, free_base, tree)
+    for k in range(n):
+        dy[row, n + k] = work[n * n + k]
+
+
 @njit(cache=True, error_model="numpy")
 def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                    general_body=None, dynamics=None, free_base=None, tree=None):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2).
 
-    Every stage evaluates body and muscles together (`system_rates`). ``out`` has shape
-    (n_steps + 1, len(y)). The activation profiles are evaluated once per stage time. Each
-    stage seeds the CE root finder with a prediction from the previous step
-    (`rates.predict`). ``general_body``: see `check_body_kind`.
+    Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
+    The activation profiles are evaluated once per stage time. Each stage seeds the CE root
+    finder with a prediction from the previous step (see `_predict`). ``general_body``: see
+    `check_body_kind`.
     """
     check_body_kind(joints, seg, general_body, free_base, tree)
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
@@ -237,11 +274,33 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
                 for i in range(size):
                     stage[i] = y[i] + factor * k[s - 1, i]
             at = 0 if s == 0 else (1 if s < 3 else 2)
-            system_rates(stage, levels, at, seen, seen4_before, k, s, now, torque, work, stats,
-                         t, h, n, nu, seg, joints, units, general_body, dynamics, free_base, tree)
-            if free_base is not None:  # contacts exist only on a free base
-                if s == 0 and contacts:
-                    _record_contacts(stats, t, h, stage, n, seg, work)
+            for j in range(n):
+                torque[j] = 0.0
+            for u in range(nu):
+                i = unit_state(n, units, u)
+                psi = unit_angle_at(stage, units, u)
+                add_unit_torque(torque, psi, stage[i], units, u)
+                if s == 0:
+                    guess = _predict(seen[3, u], seen4_before[u], seen[0, u])
+                else:
+                    guess = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
+                k[s, i], level_rate, now[s, u], tau = unit_rates(
+                    psi, stage, i, levels[at, u], guess, units, u, dynamics)
+                if dynamics is not None:
+                    if has_activation_state(units, u):
+                        k[s, i + 1] = level_rate
+                if s == 0:
+                    _record_stiffness(stats, t, h / tau, u)
+            for j in range(n):
+                k[s, j] = stage[n + j]
+            if general_body is not None:
+                _general_accelerations(stage, n, torque, seg, joints, work, k, s, free_base,
+                                       tree)
+                if free_base is not None:  # contacts exist only on a free base
+                    if s == 0 and contacts:
+                        _record_contacts(stats, t, h, stage, n, seg, work)
+            else:
+                k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
         for u in range(nu):
             seen4_before[u] = seen[3, u]
             for s in range(4):
@@ -258,7 +317,6 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
             stats[STATUS] = status
             return
     stats[SWEEPS] = n_steps
-
 
 
 @njit(cache=True, error_model="numpy")
@@ -282,7 +340,7 @@ def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free
                 else b[_TORQUE0, j]
             b[_K1 + s, j] = b[_STAGE, n + j]
         if general_body is not None:
-            general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
+            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
                                    free_base, tree)
             if free_base is not None:  # contacts exist only on a free base
                 if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
@@ -461,7 +519,7 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
             if dynamics is not None:
                 if has_activation_state(units, u):
                     b[_RATE, i + 1] = level_rate
-            record_stiffness(stats, t, hm / tau, u)
+            _record_stiffness(stats, t, hm / tau, u)
         stats[NFEV_MUSCLE] += 1
         for j in range(n):
             if predictor == LINEAR and step > 0:
@@ -566,7 +624,7 @@ def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
     Nine values, True or None, in three pairs of which one is True: (monolithic, one segment),
     (monolithic, chain), (partitioned, one segment), (partitioned, chain), of which one is
     True; SDIRK2 or RK4 muscles (the partitioned loop's); then the activation-state switch
-    (`check_unit_kinds`), the free-base and the tree switches (`rates.general_accelerations`).
+    (`check_unit_kinds`), the free-base and the tree switches (`_general_accelerations`).
     The partitioned technique exchanging at every stage is monolithic RK4 (docs/model.md §4)
     and runs the monolithic loop. None is a type of its own to Numba, so a branch
     ``if switch is not None`` on a None switch is removed when compiling, and a run compiles

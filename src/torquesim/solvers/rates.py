@@ -26,19 +26,15 @@ after another, ``profiles`` the activation rows of ``width``.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
-from numba.extending import overload
 
 from ..model.activation import activation, activation_rate, activation_time_constant
 from ..model.body import (
+    body_accelerations,
     body_switches,
     body_work_size,
     single_segment_acceleration,
-    switched_body,
-    tree_accelerations,
 )
 from ..model.state import has_activation_state, unit_state
 from ..model.torque_generator import unit_ce_velocity_and_time_constant, unit_torque
@@ -51,7 +47,6 @@ from ..model.unit_row import (
     UNIT_SECOND_ARM,
     UNIT_SECOND_JOINT,
 )
-from .run_stats import STATS_SIZE, record_stiffness
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -174,96 +169,6 @@ def joint_muscle_torques(q, x, units, n_units, out, n_joints):
                         units, u)
 
 
-def _tree_solve(y, n, torque, seg, joints, work, free_base, tree):
-    """`tree_accelerations` for the body the switches name; see `_tree_solve_for_body`."""
-
-
-@overload(_tree_solve, inline="always")
-def _tree_solve_for_body(y, n, torque, seg, joints, work, free_base, tree):
-    """Choose the solve by the switches' types while compiling, so that a caller types and
-    compiles one copy of it (fixed or free base, serial chain or tree), not four behind
-    constant branches (the same run time, a quarter of the compile time)."""
-    free, serial = switched_body(free_base, tree)
-    nb = 2 if free else 0
-
-    def solve(y, n, torque, seg, joints, work, free_base, tree):
-        tree_accelerations(y, n, nb, serial, torque, seg, joints, work)
-    return solve
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, tree):
-    """q̈ of a body of two or more coordinates into dy[row, n:2n] (the general mass-matrix
-    solve, `tree_accelerations`, inlined); ``free_base`` and ``tree`` True or None
-    (compile-time switches, so a loop holds the solve of its own body only: free base or
-    fixed, tree or serial chain)."""
-    _tree_solve(y, n, torque, seg, joints, work, free_base, tree)
-    for k in range(n):
-        dy[row, n + k] = work[n * n + k]
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def predict(preceding, preceding_before, this_before):
-    """Guess for a stage's CE velocity, rad/s: the value of the same stage one step earlier,
-    shifted by the change of the preceding stage (stage 4 precedes stage 1) over that step.
-    Within 1e-6 rad/s of the root on the default curl at 0.1 ms, so the root finder takes one
-    step. The preceding stage's value while there is no history yet (NaN: no guess)."""
-    guess = this_before + (preceding - preceding_before)
-    return guess if math.isfinite(guess) else preceding
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def system_rates(y, excitations, at, seen, seen4_before, dy, row, omegas, torque, work, stats,
-                 t, guard_step, n, nu, seg, joints, units, general_body, dynamics, free_base,
-                 tree):
-    """The whole right-hand side dy/dt of y = (q, q̇, the units' states) into dy[row]
-    (docs/model.md §1–§2): the joint torques τ = Σ_u (row u of the moment-arm matrix)·T_u
-    into ``torque``, each unit's rates (`unit_rates` at its profile value
-    excitations[at, u], its CE velocity into omegas[row, u]), then dq/dt = q̇ and q̈ from
-    the body's equations (the general solve leaves its work, contact forces included, in
-    ``work``). At stage 0 each unit's ratio guard_step/τ to its shortest time constant
-    updates the stability guard in ``stats`` at time t (`record_stiffness`; guard_step 0:
-    no update).
-
-    ``row`` is the RK4 stage (0–3): the CE root finder of a unit is seeded by `predict` from
-    the same stage's velocity one step earlier (seen[row, u]), the preceding stage's now
-    (omegas[row − 1, u]; stage 1 is preceded by stage 4 of the previous step, seen[3, u]) and
-    a step earlier (seen[row − 1, u]; seen4_before[u]). NaN histories give the preceding
-    stage's value, all NaN no seed.
-
-    The one assembly of the right-hand side: the fixed-step loops call it at every stage of
-    the whole state, SciPy's solvers through `compiled_derivative`. The switches (True or
-    None) as in `rk4_monolithic`. Inlined. Its cost against the same code written out in the
-    monolithic stage loop (d7711db), per step, median of 21 paired interleaved runs: elbow
-    1.01×, squat jump 0.99×, a 6-segment chain of 12 units 1.04–1.07× (Numba's reference
-    counting of the arrays passed in, it seems). A whole RK4 step as one inlined function
-    cost more (elbow 1.12–1.16×, 6-segment chain 1.10–1.22×): the loops keep their stage loop
-    written out."""
-    for j in range(n):
-        torque[j] = 0.0
-    for u in range(nu):
-        i = unit_state(n, units, u)
-        psi = unit_angle_at(y, units, u)
-        add_unit_torque(torque, psi, y[i], units, u)
-        if row == 0:
-            guess = predict(seen[3, u], seen4_before[u], seen[0, u])
-        else:
-            guess = predict(omegas[row - 1, u], seen[row - 1, u], seen[row, u])
-        dy[row, i], level_rate, omegas[row, u], tau = unit_rates(
-            psi, y, i, excitations[at, u], guess, units, u, dynamics)
-        if row == 0:
-            record_stiffness(stats, t, guard_step / tau, u)
-        if dynamics is not None:
-            if has_activation_state(units, u):
-                dy[row, i + 1] = level_rate
-    for j in range(n):
-        dy[row, j] = y[n + j]
-    if general_body is not None:
-        general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, tree)
-    else:
-        dy[row, 1] = single_segment_acceleration(y[0], torque[0], seg, joints)
-
-
 def chain_derivative(t, y, seg, joints, units, profiles):
     """dy/dt at time t (s) as a new array, for SciPy's solvers; takes the 2-D packed arrays of
     `PackedChain` (`compiled_derivative` with the body's switches)."""
@@ -274,15 +179,25 @@ def chain_derivative(t, y, seg, joints, units, profiles):
 @njit(cache=True, error_model="numpy")
 def compiled_derivative(t, y, seg, joints, units, profiles, general_body, free_base, tree):
     """`chain_derivative` with the body's switches (`body_switches`), so that only that
-    body's solve is compiled: `system_rates` at time t, with no root-finder seed."""
+    body's solve is compiled."""
     n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
-    dy = np.empty((1, y.shape[0]))
-    excitations = np.empty((1, nu))
-    seen = np.empty((4, nu))
+    dy = np.empty(y.shape[0])
+    torque = np.empty(n)
+    joint_muscle_torques(y, y, units, nu, torque, n)
+    for k in range(n):
+        dy[k] = y[n + k]
+    if general_body is None:
+        dy[1] = single_segment_acceleration(y[0], torque[0], seg, joints)
+    else:
+        work = np.empty(body_work_size(n, seg))
+        body_accelerations(y, n, torque, seg, joints, work, free_base, tree)
+        for k in range(n):  # a loop: a slice assignment compiles a shape check (1.6 s cold)
+            dy[n + k] = work[n * n + k]
     for u in range(nu):
-        excitations[0, u] = unit_excitation(t, profiles, width, u)
-        seen[3, u] = np.nan
-    system_rates(y, excitations, 0, seen, seen[3], dy, 0, np.empty((1, nu)), np.empty(n),
-                 np.empty(body_work_size(n, seg)), np.zeros(STATS_SIZE), t, 0.0, n, nu, seg,
-                 joints, units, general_body, True, free_base, tree)
-    return dy[0]
+        i = unit_state(n, units, u)
+        dy[i], level_rate, _, _ = unit_rates(unit_angle_at(y, units, u), y, i,
+                                             unit_excitation(t, profiles, width, u), np.nan,
+                                             units, u, True)
+        if has_activation_state(units, u):
+            dy[i + 1] = level_rate
+    return dy
