@@ -303,8 +303,8 @@ def population_residuals(population, levels, states, outputs, status, step, n, t
                          residuals, failed):
     """Residuals (rows of ``residuals``) and failure flags of every row of ``population``
     (m × 9U) from its run by `simulate_population` (``states`` of a body of ``n``
-    coordinates at ``step`` s, ground
-    ``outputs`` and ``status``), compared by the `ResidualTerms` ``terms``: q and q̇ of the
+    coordinates at ``step`` s, ground ``outputs`` and ``status``), compared by the
+    `ResidualTerms` ``terms``: q and q̇ of the
     scored coordinates at the target times by `sample_joint`, the ground output channels by
     `sample_outputs`, the activations from the candidate's ramps (`pack_profile`, unit u
     starting at ``levels[u]``). One thread: sampling costs little beside the runs, and a

@@ -607,9 +607,10 @@ def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b
         _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dynamics)
 
 
-#: Where the free-base and the tree switches are in `step_loop_switches`' tuple (compiled
-#: callers pass them on to `body.body_accelerations` and the ground outputs).
-SWITCH_FREE_BASE, SWITCH_TREE = 7, 8
+#: Where the activation-state, the free-base and the tree switches are in
+#: `step_loop_switches`' tuple (compiled callers pass the last two on to
+#: `body.body_accelerations` and the ground outputs).
+SWITCH_DYNAMICS, SWITCH_FREE_BASE, SWITCH_TREE = 6, 7, 8
 
 
 def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
@@ -621,9 +622,9 @@ def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
     `ChainModel.has_activation_dynamics`), on a free base or not (``free_base``), a tree or a
     serial chain (``tree``).
 
-    Nine values, True or None, in three pairs of which one is True: (monolithic, one segment),
-    (monolithic, chain), (partitioned, one segment), (partitioned, chain), of which one is
-    True; SDIRK2 or RK4 muscles (the partitioned loop's); then the activation-state switch
+    Nine values, True or None: four of which one is True, (monolithic, one segment),
+    (monolithic, chain), (partitioned, one segment), (partitioned, chain); a pair, SDIRK2 or
+    RK4 muscles (the partitioned loop's); then the activation-state switch
     (`check_unit_kinds`), the free-base and the tree switches (`_general_accelerations`).
     The partitioned technique exchanging at every stage is monolithic RK4 (docs/model.md §4)
     and runs the monolithic loop. None is a type of its own to Numba, so a branch
@@ -652,56 +653,49 @@ def model_step_loop(model, monolithic: bool, exchange) -> tuple:
                               not model.is_serial)
 
 
-def _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """Run the loop the switches ``kinds`` choose, from Python (see `run_step_loop`; compiled
-    callers get `_run_chosen_compiled`'s choice)."""
-    (monolithic_one, monolithic_chain, partitioned_one, partitioned_chain, sdirk_muscles,
-     rk4_muscles, dynamics, free_base, tree) = kinds
-    seg, joints, units, profiles = system
-    if monolithic_one is not None:
-        rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
-                       dynamics=dynamics)
-    if monolithic_chain is not None:
-        rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
-                       monolithic_chain, dynamics, free_base, tree)
-    if partitioned_one is not None:
-        rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                        None, sdirk_muscles, rk4_muscles, dynamics, None, None)
-    if partitioned_chain is not None:
-        rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                        partitioned_chain, sdirk_muscles, rk4_muscles, dynamics, free_base,
-                        tree)
-
-
-@overload(_run_chosen, inline="always")
-def _run_chosen_compiled(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """Choose the loop by the types of the switches in ``kinds`` while compiling: only the
-    chosen loop is typed and compiled, its switches passed on as the tuple's elements (typed
-    bool or None, as a Python True is typed: a literal True would compile a second copy of
-    the loop for compiled callers, measured: the jump's IMEX loop compiled twice, 11–18 s
-    each)."""
-    on = [not isinstance(kind, types.NoneType) for kind in kinds.types]
-    if on[0]:  # one segment: the general body's branch is not compiled
+def _chosen_loop(on):
+    """The call of the step loop that the switches choose, ``on[i]`` telling whether switch i
+    (`step_loop_switches`) is True: the same function runs from Python (calling the chosen
+    loop's dispatcher) and is compiled for compiled callers (`_run_chosen_compiled`). The
+    loop gets the switches as the tuple's elements, typed bool or None as a Python True is
+    (a literal True would compile a second copy of the loop for compiled callers, measured:
+    the jump's IMEX loop compiled twice, 11–18 s each)."""
+    if on[0]:  # one segment: general_body left out, its branch not compiled
         def monolithic_one(kinds, system, y0, h, n_steps, coupling, out, stats):
             rk4_monolithic(y0, h, n_steps, system[0], system[1], system[2], system[3], out,
-                           stats, dynamics=kinds[6])
+                           stats, dynamics=kinds[SWITCH_DYNAMICS])
         return monolithic_one
     if on[1]:
         def monolithic_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
             rk4_monolithic(y0, h, n_steps, system[0], system[1], system[2], system[3], out,
-                           stats, kinds[1], kinds[6], kinds[7], kinds[8])
+                           stats, kinds[1], kinds[SWITCH_DYNAMICS], kinds[SWITCH_FREE_BASE],
+                           kinds[SWITCH_TREE])
         return monolithic_chain
     if on[2]:
         def partitioned_one(kinds, system, y0, h, n_steps, coupling, out, stats):
             rk4_partitioned(y0, h, n_steps, system[0], system[1], system[2], system[3],
-                            coupling, out, stats, None, kinds[4], kinds[5], kinds[6], None,
-                            None)
+                            coupling, out, stats, None, kinds[4], kinds[5],
+                            kinds[SWITCH_DYNAMICS], None, None)
         return partitioned_one
 
     def partitioned_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
         rk4_partitioned(y0, h, n_steps, system[0], system[1], system[2], system[3], coupling,
-                        out, stats, kinds[3], kinds[4], kinds[5], kinds[6], kinds[7], kinds[8])
+                        out, stats, kinds[3], kinds[4], kinds[5], kinds[SWITCH_DYNAMICS],
+                        kinds[SWITCH_FREE_BASE], kinds[SWITCH_TREE])
     return partitioned_chain
+
+
+def _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats):
+    """Run the loop the switches ``kinds`` choose, from Python (`_chosen_loop`)."""
+    _chosen_loop([kind is not None for kind in kinds])(kinds, system, y0, h, n_steps,
+                                                         coupling, out, stats)
+
+
+@overload(_run_chosen, inline="always")
+def _run_chosen_compiled(kinds, system, y0, h, n_steps, coupling, out, stats):
+    """`_run_chosen` for compiled callers: the loop chosen by the switches' Numba types while
+    compiling, so that only the chosen loop is typed and compiled."""
+    return _chosen_loop([not isinstance(kind, types.NoneType) for kind in kinds.types])
 
 
 @njit(cache=True, error_model="numpy")
@@ -710,7 +704,7 @@ def run_step_loop(kinds, system, y0, h, n_steps, coupling, out, stats):
     packed model ``system`` = (segments, joints, units, profiles) (`PackedChain`):
     `rk4_monolithic` or `rk4_partitioned` under the packed ``coupling``, for one segment or a
     chain, and in the partitioned loop its muscle solver; y0 the initial state,
-    h the step (s), ``out`` (n_steps + 1 rows of y) and ``stats`` (`run_stats`) filled. Only
+    h the step (s), ``out`` (n_steps + 1 rows of y) and ``stats`` (`new_stats`) filled. Only
     the chosen code is compiled. (A dispatcher passed as an argument would choose as well, but
     Numba's disk cache misses such compilations in every new process; an integer made literal
     compiles every branch once before it specialises.) Compiled callers (the population
