@@ -107,12 +107,19 @@ def main() -> None:
         kept["loaded" if args.hogs else "idle"] = line
         RECORD.parent.mkdir(parents=True, exist_ok=True)
         RECORD.write_text("".join(f"{k}\t{v}\n" for k, v in sorted(kept.items())))
-        body = ("Measured by `python benchmarks/bench_suite.py --write-docs` (and `--hogs 2`): "
-                "`python -m pytest` took\n"
-                + "".join(f"- {kept[k]}\n" for k in ("idle", "loaded") if k in kept))
-        for page in ("README.md", "docs/index.md"):
-            if current_block(page, "test-suite") != body:
-                write_blocks(page, {"test-suite": body})
+        write_docs(kept)
+
+
+def write_docs(kept: dict) -> None:
+    """Write the recorded runs into the ``test-suite`` blocks of README.md and docs/index.md
+    (a list, so a blank line before it: Markdown runs a list on from a paragraph's line into
+    that paragraph)."""
+    body = ("Measured by `python benchmarks/bench_suite.py --write-docs` (and `--hogs 2`): "
+            "`python -m pytest` took\n\n"
+            + "".join(f"- {kept[k]}\n" for k in ("idle", "loaded") if k in kept))
+    for page in ("README.md", "docs/index.md"):
+        if current_block(page, "test-suite") != body:
+            write_blocks(page, {"test-suite": body})
 
 
 if __name__ == "__main__":
