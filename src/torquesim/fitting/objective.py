@@ -105,13 +105,14 @@ def sample_joint(states, step, times, joint, n, theta_out, omega_out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def simulate_population(first, count, population, loop, coupling, y0, step, n_steps, seg,
-                        joints, units, levels, explicit_muscles, ground_steps, states,
-                        activations, outputs, status):
+def simulate_population(first, count, population, levels, kinds, system, run, ground_steps,
+                        results):
     """Simulate the ``count`` rows from row ``first`` of ``population`` (m × 9U ramp vectors,
-    `fitting.parameters`; fewer at its end) with
-    the step loop the switches ``loop`` choose (`fixed_step.step_loop_switches`), unit u
-    starting at ``levels[u]``. Fills, per candidate j: ``states[j]`` (steps + 1 rows of y),
+    `fitting.parameters`; fewer at its end) with the step loop of the kinds ``kinds``
+    (`fixed_step.StepKinds`) on ``system`` = the packed (segments, joints, units), unit u
+    starting at ``levels[u]``; ``run`` = (packed coupling, y0, step (s), number of steps,
+    whether the muscles are explicit). Fills ``results`` = (states, activations, outputs,
+    status), per candidate j: ``states[j]`` (steps + 1 rows of y),
     ``status[j]`` (`run_status`), the profiles' values at the first
     ``activations.shape[2]`` steps into ``activations[j]`` (units × those steps; none for a
     fit, every step for an optimisation) and, for a body on the ground, its
@@ -122,6 +123,9 @@ def simulate_population(first, count, population, loop, coupling, y0, step, n_st
     The parameter arrays are copied per candidate: candidates run in parallel threads, and
     the step loops' reference counting on arrays shared between threads would contend
     (measured: the population scored 2.3x slower)."""
+    seg, joints, units = system
+    coupling, y0, step, n_steps, explicit_muscles = run
+    states, activations, outputs, status = results
     n = joints.shape[0]
     for j in range(first, min(first + count, population.shape[0])):
         seg_j, joints_j, units_j = seg.copy(), joints.copy(), units.copy()
@@ -130,7 +134,7 @@ def simulate_population(first, count, population, loop, coupling, y0, step, n_st
         for u in range(levels.shape[0]):
             pack_profile(population[j], u * PER_UNIT, levels[u], profiles[u])
         stats = np.zeros(fs.STATS_SIZE)
-        fs.run_step_loop(loop, (seg_j, joints_j, units_j, profiles), y0_j, step, n_steps,
+        fs.run_step_loop(kinds, (seg_j, joints_j, units_j, profiles), y0_j, step, n_steps,
                          coupling_j, states[j], stats)
         flat = profiles.ravel()
         for u in range(levels.shape[0]):
@@ -139,8 +143,7 @@ def simulate_population(first, count, population, loop, coupling, y0, step, n_st
         status[j] = run_status(stats, explicit_muscles)
         if ground_steps.shape[0] > 0 and status[j] == RUN_OK:
             _ground_outputs_of_run(states[j], ground_steps, n, seg_j, joints_j.ravel(),
-                                   outputs[j], loop[fs.SWITCH_FREE_BASE],
-                                   loop[fs.SWITCH_TREE])
+                                   outputs[j], kinds.free_base, kinds.tree)
 
 
 @njit(cache=True, error_model="numpy")
@@ -177,10 +180,11 @@ def _pool(threads: int) -> ThreadPoolExecutor:
 os.register_at_fork(after_in_child=_pool.cache_clear)
 
 
-def run_population(rows, loop, coupling, y0, step: float, n_steps: int, arrays, levels,
+def run_population(rows, kinds, coupling, y0, step: float, n_steps: int, arrays, levels,
                    explicit_muscles: bool, ground_steps, activation_steps: int = 0):
     """`simulate_population` of the ramp vectors ``rows`` (at most `POPULATION_CHUNK`) on the
-    packed ``arrays`` (segments, joints, units), with its output arrays made here: returns
+    packed ``arrays`` (segments, joints, units) with the step loop of the kinds ``kinds``
+    (`fixed_step.StepKinds`), with its output arrays made here: returns
     (states, activations, ground outputs, status), the activations at the first
     ``activation_steps`` steps and the ground outputs at ``ground_steps`` (indices).
     The candidates run in Numba's number of threads (`numba.get_num_threads`, one in a Dask
@@ -196,9 +200,9 @@ def run_population(rows, loop, coupling, y0, step: float, n_steps: int, arrays, 
     block = -(-m // threads)  # candidates per thread, rounded up
 
     def run(thread):
-        simulate_population(thread * block, block, rows, loop, coupling, y0, step, n_steps,
-                            *arrays, levels, explicit_muscles, ground_steps, states,
-                            activations, outputs, status)
+        simulate_population(thread * block, block, rows, levels, kinds, tuple(arrays),
+                            (coupling, y0, step, n_steps, explicit_muscles), ground_steps,
+                            (states, activations, outputs, status))
     others = [_pool(threads - 1).submit(run, t) for t in range(1, threads)]
     run(0)  # this thread takes the first block instead of waiting
     for other in others:

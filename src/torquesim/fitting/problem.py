@@ -176,7 +176,7 @@ class FitProblem:
         self.coupling = default_coupling(self.method)
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_loop = fs.model_step_loop(base, runs_monolithic(self.method),
+        self.step_kinds = fs.model_step_kinds(base, runs_monolithic(self.method),
                                             self.coupling.to_array())
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
@@ -214,7 +214,7 @@ class FitProblem:
             rows = population[begin:begin + obj.POPULATION_CHUNK]
             m = rows.shape[0]
             states, _, outputs, status = obj.run_population(
-                rows, self.step_loop, self.coupling.to_array(), self.y0, self.step,
+                rows, self.step_kinds, self.coupling.to_array(), self.y0, self.step,
                 self.n_steps, self.arrays, self.levels, self.explicit_muscles, self.ground_steps)
             obj.population_residuals(
                 rows, self.levels, states, outputs, status, self.step,

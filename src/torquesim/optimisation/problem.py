@@ -266,7 +266,7 @@ class OptimiseProblem:
         self.coupling = default_coupling(self.method)
         packed = self.model3.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_loop = fs.model_step_loop(start, runs_monolithic(self.method),
+        self.step_kinds = fs.model_step_kinds(start, runs_monolithic(self.method),
                                             self.coupling.to_array())
         self.ground = bool(start.contacts) and start.base == "free"
         self.joint_names = tuple(j.name for j in start.joints)
@@ -307,7 +307,7 @@ class OptimiseProblem:
     def _chunk(self, rows) -> list[tuple[Trial | None, str]]:
         m, steps = rows.shape[0], self.n_steps + 1
         states, activations, outputs, status = run_population(
-            rows, self.step_loop, self.coupling.to_array(), self.y0, self.step, self.n_steps,
+            rows, self.step_kinds, self.coupling.to_array(), self.y0, self.step, self.n_steps,
             self.arrays, self.levels, self.explicit_muscles,
             np.arange(steps if self.ground else 0), activation_steps=steps)
         model = self.start_model

@@ -1,13 +1,14 @@
 """Fixed-step solvers, compiled, for any chain: monolithic RK4 and partitioned RK4 with every
 coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX technique).
 
-The loops take the packed chain arrays (`PackedChain`), write
-the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices
-below). Scratch arrays are allocated once per run, the parameter arrays are read flat with row
-offsets, and the loops over units and joints sit in the step loops themselves, calling only
-loop-free inlined functions of `torquesim.solvers.rates`: a compiled helper holding a
-loop over array arguments costs Numba atomic reference counting at every call, which was
-measured to cost more than the model itself.
+The loops take the packed chain arrays (`PackedChain`) as one tuple and the run's kinds
+(`StepKinds`) as switch arguments, write the state y = (q, q̇, θ_cc) at every step into
+``out`` and fill a ``stats`` array (indices below). Scratch arrays are allocated once per
+run, the parameter arrays are read flat with row offsets, and the loops over units and
+joints sit in the step loops themselves, calling only loop-free inlined functions of
+`torquesim.solvers.rates`: a compiled helper holding a loop over array arguments costs Numba
+atomic reference counting at every call, which was measured to cost more than the model
+itself.
 
 Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
 is evaluated (from the slope the CE root finder ends with, so at no extra cost) and the
@@ -18,6 +19,7 @@ step/τ ≤ `RK4_STABILITY_LIMIT`.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, types
@@ -227,17 +229,19 @@ def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, 
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
-                   general_body=None, dynamics=None, free_base=None, tree=None):
-    """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2).
+def rk4_monolithic(system, y0, h, n_steps, out, stats, general_body=None, dynamics=None,
+                   free_base=None, tree=None):
+    """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2) of the
+    model ``system`` = (segments, joints, units, profiles) (`PackedChain`).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
     The activation profiles are evaluated once per stage time. Each stage seeds the CE root
     finder with a prediction from the previous step (see `_predict`). ``general_body``: see
     `check_body_kind`.
     """
-    check_body_kind(joints, seg, general_body, free_base, tree)
-    n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
+    seg = system[0]
+    check_body_kind(system[1], seg, general_body, free_base, tree)
+    n, nu, width, units, joints, profiles = flat_arrays(system)
     size = y0.shape[0]
     y = y0.copy()
     for i in range(size):
@@ -320,11 +324,12 @@ def rk4_monolithic(y0, h, n_steps, seg, joints, units, profiles, out, stats,
 
 
 @njit(cache=True, error_model="numpy")
-def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free_base,
-              tree):
+def _body_rk4(body, t, y, h, b, y_new, stats, general_body, free_base, tree):
     """One RK4 step of the body part (q, q̇) = y[:2n] with joint torques
     τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
-    result into y_new[:2n]. ``b`` is the partitioned loop's scratch array."""
+    result into y_new[:2n]. ``body`` = (n, segments, flat joints, work array), ``b`` the
+    partitioned loop's scratch array, the switches as for `rk4_monolithic`."""
+    n, seg, joints, work = body
     m = unit_states_start(n)  # q and q̇: the body part
     for s in range(4):
         if s == 0:
@@ -353,16 +358,18 @@ def _body_rk4(t, y, n, h, seg, joints, work, b, y_new, general_body, stats, free
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dynamics):
+def _muscle_rk4(muscles, t, y, h, substeps, b, y_new, dynamics):
     """``substeps`` RK4 steps of the muscle part (the units' states y[2n:]) over [t, t + h]
     with joint angles q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]); the activation profiles
-    are evaluated at every stage time. Result into y_new[2n:].
+    are evaluated at every stage time. Result into y_new[2n:]. ``muscles`` = (n, number of
+    units, profile row width, flat units, flat profiles).
 
     The units' rates and CE velocities at (t, q_n, y) (b[_RATE], b[_OMEGA]) were evaluated
     by the caller: they are the first stage of the first sub-step. Makes 4·substeps − 1
     muscle evaluations. The stage rows b[_K1…_K4] and b[_MUSCLE_STAGE] are indexed as y, the
     CE velocities b[_W1…_W4] by unit.
     """
+    n, nu, width, units, profiles = muscles
     hs = h / substeps
     c = unit_states_start(n)
     size = y.shape[0]
@@ -401,8 +408,7 @@ def _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dyna
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new,
-                   dynamics):
+def _muscle_sdirk2(muscles, t, y, h, substeps, b, stats, y_new, dynamics):
     """``substeps`` steps of the muscle part (the units' states y[2n:]) over [t, t + h] by
     the L-stable two-stage SDIRK method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h;
     stiffly accurate), each unit's stage equation solved by
@@ -414,8 +420,9 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
     The explicit CE velocities at the step start (b[_OMEGA]) seed Newton's method. Each unit
     residual evaluation is counted in ``stats[NEWTON_ITERATIONS]``, each stage equation in
     ``stats[IMPLICIT_SOLVES]``. The units are independent given
-    q(s), so each is advanced over the whole step in turn.
+    q(s), so each is advanced over the whole step in turn. ``muscles`` as for `_muscle_rk4`.
     """
+    n, nu, width, units, profiles = muscles
     hs = h / substeps
     gh = SDIRK_GAMMA * hs
     solves = 0
@@ -465,8 +472,8 @@ def _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out, stats,
-                    general_body, sdirk_muscles, rk4_muscles, dynamics, free_base, tree):
+def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, general_body, sdirk_muscles,
+                    rk4_muscles, dynamics, free_base, tree):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -480,16 +487,17 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
     the other (`step_loop_switches`), so Numba compiles only the code a run needs. (The
     every-stage exchange is monolithic RK4: `run_step_loop` runs it in `rk4_monolithic`.)
     """
-    check_body_kind(joints, seg, general_body, free_base, tree)
+    seg = system[0]
+    check_body_kind(system[1], seg, general_body, free_base, tree)
     if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (sdirk_muscles is not None) or \
             int(coupling[ORDER]) == EVERY_STAGE:
-        raise ValueError("the coupling array and the step loop's switches disagree")
+        raise ValueError("the coupling array and the step loop's kinds disagree")
     order = int(coupling[ORDER])
     predictor = int(coupling[PREDICTOR])
     substeps = int(coupling[MUSCLE_SUBSTEPS])
     sweeps = int(coupling[ITERATIONS])
     tol = coupling[TOLERANCE]
-    n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
+    n, nu, width, units, joints, profiles = flat_arrays(system)
     check_unit_kinds(units, nu, dynamics)
     size = y0.shape[0]
     c = unit_states_start(n)
@@ -499,6 +507,8 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
         out[0, i] = y[i]
     b = np.empty((_SCRATCH_ROWS, size))
     work = np.empty(body_work_size(n, seg))
+    body = (n, seg, joints, work)
+    muscles = (n, nu, width, units, profiles)
     q_prev = y0[:n].copy()
     torque_prev = np.empty(n)
     for u in range(nu):
@@ -536,23 +546,21 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
             for i in range(size):
                 b[_OLD, i] = y1[i]
             if order == MUSCLES_FIRST:
-                _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
-                             sdirk_muscles, rk4_muscles, b, stats, y1, dynamics)
+                _muscle_step(muscles, t, y, h, substeps, b, stats, y1, sdirk_muscles,
+                             rk4_muscles, dynamics)
                 for j in range(n):
                     b[_Q, j] = y[j] + b[_Q_SLOPE, j]
                 joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
                 for j in range(n):
                     b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base,
-                          tree)
+                _body_rk4(body, t, y, h, b, y1, stats, general_body, free_base, tree)
             else:
-                _body_rk4(t, y, n, h, seg, joints, work, b, y1, general_body, stats, free_base,
-                          tree)
+                _body_rk4(body, t, y, h, b, y1, stats, general_body, free_base, tree)
                 if order == BODY_FIRST:
                     for j in range(n):
                         b[_Q_SLOPE, j] = y1[j] - y[j]
-                _muscle_step(t, y, n, nu, h, substeps, units, profiles, width,
-                             sdirk_muscles, rk4_muscles, b, stats, y1, dynamics)
+                _muscle_step(muscles, t, y, h, substeps, b, stats, y1, sdirk_muscles,
+                             rk4_muscles, dynamics)
             stats[NFEV_BODY] += 4
             stats[SWEEPS] += 1
             # Later sweeps see the other part's end-of-step values (waveform relaxation).
@@ -595,122 +603,128 @@ def rk4_partitioned(y0, h, n_steps, seg, joints, units, profiles, coupling, out,
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_step(t, y, n, nu, h, substeps, units, profiles, width, sdirk, rk4, b, stats,
-                 y_new, dynamics):
+def _muscle_step(muscles, t, y, h, substeps, b, stats, y_new, sdirk, rk4, dynamics):
     """Advance the muscle part over one body step with implicit SDIRK2 (``sdirk`` True) or
     explicit RK4 (``rk4`` True); the other is None and not compiled."""
     if sdirk is not None:
-        _muscle_sdirk2(t, y, n, nu, h, substeps, units, profiles, width, b, stats, y_new,
-                       dynamics)
+        _muscle_sdirk2(muscles, t, y, h, substeps, b, stats, y_new, dynamics)
     if rk4 is not None:
         stats[NFEV_MUSCLE] += 4 * substeps - 1
-        _muscle_rk4(t, y, n, nu, h, substeps, units, profiles, width, b, y_new, dynamics)
+        _muscle_rk4(muscles, t, y, h, substeps, b, y_new, dynamics)
 
 
-#: Where the activation-state, the free-base and the tree switches are in
-#: `step_loop_switches`' tuple (compiled callers pass the last two on to
-#: `body.body_accelerations` and the ground outputs).
-SWITCH_DYNAMICS, SWITCH_FREE_BASE, SWITCH_TREE = 6, 7, 8
+class StepKinds(NamedTuple):
+    """What a run's step loop is made of, by name, each kind True or None (`switch`; None is
+    a type of its own to Numba, so a loop given a None kind drops the code behind
+    ``if kind is not None`` when it compiles, and a run compiles only its own code: a fit
+    one loop and one muscle solver, not all of them). `step_kinds` makes them; the loops
+    take them as their switch arguments (`_chosen_loop`)."""
+
+    #: The monolithic loop (`rk4_monolithic`; the every-stage exchange too), else the
+    #: partitioned one (`rk4_partitioned`).
+    monolithic: bool | None
+    #: Two or more coordinates (the general mass-matrix solve), else one segment on a fixed
+    #: pivot (q̈ one division; `check_body_kind`).
+    general_body: bool | None
+    #: The partitioned loop's muscle part by SDIRK2 (IMEX) …
+    implicit_muscles: bool | None
+    #: … or by RK4 (both None in the monolithic loop).
+    explicit_muscles: bool | None
+    #: Some unit has an activation state (`check_unit_kinds`).
+    dynamics: bool | None
+    #: The body on a free base (on the ground, with its contacts).
+    free_base: bool | None
+    #: The body a tree, not a serial chain.
+    tree: bool | None
 
 
-def step_loop_switches(monolithic: bool, n_coordinates: int, coupling,
-                       dynamics: bool = False, free_base: bool = False,
-                       tree: bool = False) -> tuple:
-    """The switches of `run_step_loop` for the monolithic (else partitioned, under the packed
-    ``coupling``) technique on a body of ``n_coordinates`` (`ChainModel.n_coordinates`) whose
-    units have activation dynamics or not (``dynamics``: any unit has;
+def step_kinds(monolithic: bool, n_coordinates: int, coupling, dynamics: bool = False,
+               free_base: bool = False, tree: bool = False) -> StepKinds:
+    """The `StepKinds` of the monolithic (else partitioned, under the packed ``coupling``)
+    technique on a body of ``n_coordinates`` (`ChainModel.n_coordinates`) whose units have
+    activation dynamics or not (``dynamics``: any unit has;
     `ChainModel.has_activation_dynamics`), on a free base or not (``free_base``), a tree or a
-    serial chain (``tree``).
-
-    Nine values, True or None: four of which one is True, (monolithic, one segment),
-    (monolithic, chain), (partitioned, one segment), (partitioned, chain); a pair, SDIRK2 or
-    RK4 muscles (the partitioned loop's); then the activation-state switch
-    (`check_unit_kinds`), the free-base and the tree switches (`_general_accelerations`).
-    The partitioned technique exchanging at every stage is monolithic RK4 (docs/model.md §4)
-    and runs the monolithic loop. None is a type of its own to Numba, so a branch
-    ``if switch is not None`` on a None switch is removed when compiling, and a run compiles
-    only its own code (a fit one loop and one muscle solver, not all of them)."""
+    serial chain (``tree``). The partitioned technique exchanging at every stage is monolithic
+    RK4 (docs/model.md §4) and runs the monolithic loop."""
     monolithic = monolithic or int(coupling[ORDER]) == EVERY_STAGE
-    chain = n_coordinates > 1
-    sdirk = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
-    return (switch(monolithic and not chain), switch(monolithic and chain),
-            switch(not monolithic and not chain), switch(not monolithic and chain),
-            switch(sdirk), switch(not sdirk), switch(dynamics), switch(free_base),
-            switch(tree))
+    implicit = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
+    return StepKinds(switch(monolithic), switch(n_coordinates > 1), switch(implicit),
+                     switch(not monolithic and not implicit), switch(dynamics),
+                     switch(free_base), switch(tree))
 
 
-def runs_monolithic_loop(switches: tuple) -> bool:
-    """Whether `step_loop_switches` chose `rk4_monolithic` (the every-stage exchange too: its
-    stability guard then sees the whole step, with no muscle sub-steps)."""
-    return switches[0] is not None or switches[1] is not None
+def model_step_kinds(model, monolithic: bool, exchange) -> StepKinds:
+    """`step_kinds` of a `ChainModel`: its coordinates, activation dynamics, base and tree
+    read off the model."""
+    return step_kinds(monolithic, model.n_coordinates, exchange,
+                      model.has_activation_dynamics, model.base == "free",
+                      not model.is_serial)
 
 
-def model_step_loop(model, monolithic: bool, exchange) -> tuple:
-    """`step_loop_switches` of a `ChainModel`: its coordinates, activation dynamics, base
-    and tree read off the model."""
-    return step_loop_switches(monolithic, model.n_coordinates, exchange,
-                              model.has_activation_dynamics, model.base == "free",
-                              not model.is_serial)
+def kind_on(kinds, name: str) -> bool:
+    """Whether kind ``name`` of ``kinds`` (`StepKinds`) is on: read off the value (Python
+    callers) or off its Numba type while compiling (`_run_chosen_compiled`)."""
+    if isinstance(kinds, types.BaseNamedTuple):
+        return not isinstance(kinds.types[kinds.fields.index(name)], types.NoneType)
+    return getattr(kinds, name) is not None
 
 
-def _chosen_loop(on):
-    """The call of the step loop that the switches choose, ``on[i]`` telling whether switch i
-    (`step_loop_switches`) is True: the same function runs from Python (calling the chosen
-    loop's dispatcher) and is compiled for compiled callers (`_run_chosen_compiled`). The
-    loop gets the switches as the tuple's elements, typed bool or None as a Python True is
-    (a literal True would compile a second copy of the loop for compiled callers, measured:
-    the jump's IMEX loop compiled twice, 11–18 s each)."""
-    if on[0]:  # one segment: general_body left out, its branch not compiled
+def _chosen_loop(kinds):
+    """The call of the step loop the kinds choose, with the kinds as its switch arguments
+    (`kind_on`): the same function runs from Python (calling the chosen loop's dispatcher)
+    and is compiled for compiled callers (`_run_chosen_compiled`). The loop gets the kinds as
+    the tuple's fields, typed bool or None as a Python True is (a literal True would compile
+    a second copy of the loop for compiled callers, measured: the jump's IMEX loop compiled
+    twice, 11–18 s each)."""
+    monolithic, general = kind_on(kinds, "monolithic"), kind_on(kinds, "general_body")
+    if monolithic and not general:  # one segment: general_body left out, its branch not compiled
         def monolithic_one(kinds, system, y0, h, n_steps, coupling, out, stats):
-            rk4_monolithic(y0, h, n_steps, system[0], system[1], system[2], system[3], out,
-                           stats, dynamics=kinds[SWITCH_DYNAMICS])
+            rk4_monolithic(system, y0, h, n_steps, out, stats, dynamics=kinds.dynamics)
         return monolithic_one
-    if on[1]:
+    if monolithic:
         def monolithic_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
-            rk4_monolithic(y0, h, n_steps, system[0], system[1], system[2], system[3], out,
-                           stats, kinds[1], kinds[SWITCH_DYNAMICS], kinds[SWITCH_FREE_BASE],
-                           kinds[SWITCH_TREE])
+            rk4_monolithic(system, y0, h, n_steps, out, stats, kinds.general_body,
+                           kinds.dynamics, kinds.free_base, kinds.tree)
         return monolithic_chain
-    if on[2]:
+    if not general:
         def partitioned_one(kinds, system, y0, h, n_steps, coupling, out, stats):
-            rk4_partitioned(y0, h, n_steps, system[0], system[1], system[2], system[3],
-                            coupling, out, stats, None, kinds[4], kinds[5],
-                            kinds[SWITCH_DYNAMICS], None, None)
+            rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, None,
+                            kinds.implicit_muscles, kinds.explicit_muscles, kinds.dynamics,
+                            None, None)
         return partitioned_one
 
     def partitioned_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
-        rk4_partitioned(y0, h, n_steps, system[0], system[1], system[2], system[3], coupling,
-                        out, stats, kinds[3], kinds[4], kinds[5], kinds[SWITCH_DYNAMICS],
-                        kinds[SWITCH_FREE_BASE], kinds[SWITCH_TREE])
+        rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, kinds.general_body,
+                        kinds.implicit_muscles, kinds.explicit_muscles, kinds.dynamics,
+                        kinds.free_base, kinds.tree)
     return partitioned_chain
 
 
 def _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """Run the loop the switches ``kinds`` choose, from Python (`_chosen_loop`)."""
-    _chosen_loop([kind is not None for kind in kinds])(kinds, system, y0, h, n_steps,
-                                                         coupling, out, stats)
+    """Run the loop the kinds choose, from Python (`_chosen_loop`)."""
+    _chosen_loop(kinds)(kinds, system, y0, h, n_steps, coupling, out, stats)
 
 
 @overload(_run_chosen, inline="always")
 def _run_chosen_compiled(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """`_run_chosen` for compiled callers: the loop chosen by the switches' Numba types while
+    """`_run_chosen` for compiled callers: the loop chosen by the kinds' Numba types while
     compiling, so that only the chosen loop is typed and compiled."""
-    return _chosen_loop([not isinstance(kind, types.NoneType) for kind in kinds.types])
+    return _chosen_loop(kinds)
 
 
 @njit(cache=True, error_model="numpy")
 def run_step_loop(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """Run the step loop that the switches ``kinds`` (`step_loop_switches`) choose on the
-    packed model ``system`` = (segments, joints, units, profiles) (`PackedChain`):
-    `rk4_monolithic` or `rk4_partitioned` under the packed ``coupling``, for one segment or a
-    chain, and in the partitioned loop its muscle solver; y0 the initial state,
-    h the step (s), ``out`` (n_steps + 1 rows of y) and ``stats`` (`new_stats`) filled. Only
-    the chosen code is compiled. (A dispatcher passed as an argument would choose as well, but
-    Numba's disk cache misses such compilations in every new process; an integer made literal
-    compiles every branch once before it specialises.) Compiled callers (the population
-    kernel) call it compiled; Python callers run its Python code (``run_step_loop.py_func``),
-    which calls the chosen loop's dispatcher directly, so that the wrapper is not compiled
-    around it (`torquesim.solvers.simulation`)."""
+    """Run the step loop of the kinds ``kinds`` (`StepKinds`) on the packed model ``system``
+    = (segments, joints, units, profiles) (`PackedChain`): `rk4_monolithic` or
+    `rk4_partitioned` under the packed ``coupling``, for one segment or a chain, and in the
+    partitioned loop its muscle solver; y0 the initial state, h the step (s), ``out``
+    (n_steps + 1 rows of y) and ``stats`` (`new_stats`) filled. Only the chosen code is
+    compiled. (A dispatcher passed as an argument would choose as well, but Numba's disk
+    cache misses such compilations in every new process; an integer made literal compiles
+    every branch once before it specialises.) Compiled callers (the population kernel) call
+    it compiled; Python callers run its Python code (``run_step_loop.py_func``), which calls
+    the chosen loop's dispatcher directly, so that the wrapper is not compiled around it
+    (`torquesim.solvers.simulation`)."""
     _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats)
 
 

@@ -149,10 +149,11 @@ def unit_level(excitation, y, i, units, u):
 
 
 @njit(cache=True, error_model="numpy")
-def flat_arrays(seg, joints, units, profiles):
+def flat_arrays(system):
     """(n coordinates, n units, profile row width, flat units, flat joints, flat profiles) of
-    the 2-D packed arrays of `PackedChain`, as the loops read them (the joint array has a row
-    per coordinate)."""
+    ``system`` = the 2-D packed arrays (segments, joints, units, profiles) of `PackedChain`,
+    as the loops read them (the joint array has a row per coordinate)."""
+    joints, units, profiles = system[1], system[2], system[3]
     return (joints.shape[0], units.shape[0], profiles.shape[1], units.ravel(), joints.ravel(),
             profiles.ravel())
 
@@ -180,7 +181,7 @@ def chain_derivative(t, y, seg, joints, units, profiles):
 def compiled_derivative(t, y, seg, joints, units, profiles, general_body, free_base, tree):
     """`chain_derivative` with the body's switches (`body_switches`), so that only that
     body's solve is compiled."""
-    n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
+    n, nu, width, units, joints, profiles = flat_arrays((seg, joints, units, profiles))
     dy = np.empty(y.shape[0])
     torque = np.empty(n)
     joint_muscle_torques(y, y, units, nu, torque, n)

@@ -38,15 +38,19 @@ from .rates import (
 
 
 @njit(cache=True)
-def derived_quantities(time, states, seg, joints, units, profiles, unit_out, joint_out,
-                       contact_out, free_base, tree):
+def derived_quantities(time, states, system, outputs, free_base, tree):
     """Per row of ``states`` (y): fill ``unit_out`` (rows × U × 5) with each unit's torque T
     (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s), CE time constant τ (s) and
     profile value e(t);
     and ``joint_out`` (rows × n × 2) with each joint's net muscle torque (Σ over units of the
     moment arm × T) and end-stop
-    torque T_p (N·m). Takes the 2-D arrays of `PackedChain`."""
-    n, nu, width, units, joints, profiles = flat_arrays(seg, joints, units, profiles)
+    torque T_p (N·m); and ``contact_out`` (rows × contacts × 4) with each contact's force
+    and point. ``system``: the 2-D arrays of `PackedChain`; ``outputs`` = (unit_out,
+    joint_out, contact_out); ``free_base`` and ``tree`` the body's switches
+    (`body_switches`)."""
+    unit_out, joint_out, contact_out = outputs
+    seg = system[0]
+    n, nu, width, units, joints, profiles = flat_arrays(system)
     torque = np.empty(n)
     n_contacts = contact_out.shape[1]
     work = np.empty(body_work_size(n, seg))
@@ -267,8 +271,9 @@ class SimulationResult:
         unit_out = np.empty((self.time.size, nu, 5))
         joint_out = np.empty((self.time.size, nc, 2))
         contact_out = np.zeros((self.time.size, len(self.model.contacts), 4))
-        derived_quantities(self.time, self.states, *self.packed, unit_out, joint_out,
-                           contact_out, *body_switches(self.packed.segments, nc)[1:])
+        derived_quantities(self.time, self.states, tuple(self.packed),
+                           (unit_out, joint_out, contact_out),
+                           *body_switches(self.packed.segments, nc)[1:])
         return unit_out, joint_out[:, nb:], contact_out
 
     def columns(self) -> dict[str, np.ndarray]:

@@ -170,20 +170,20 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
         label, exchange = coupling.label(), coupling.to_array()
     else:
         label, exchange = method, np.zeros(fs.COUPLING_SIZE)  # unused
-    switches = fs.model_step_loop(model, not partitioned, exchange)
-    # From Python the switches choose in Python (run_step_loop's own code, not compiled): only
+    kinds = fs.model_step_kinds(model, not partitioned, exchange)
+    # From Python the kinds choose in Python (run_step_loop's own code, not compiled): only
     # the chosen loop is compiled, not also the wrapper around it (0.6 s of a cold start).
     run = fs.run_step_loop.py_func
     # A zero-step call compiles the loop (or loads it from the disk cache) outside the timing.
-    run(switches, tuple(packed), y0, float(step), 0, exchange, out, fs.new_stats())
+    run(kinds, tuple(packed), y0, float(step), 0, exchange, out, fs.new_stats())
     start = _time.perf_counter()
-    run(switches, tuple(packed), y0, float(step), n, exchange, out, stats)
+    run(kinds, tuple(packed), y0, float(step), n, exchange, out, stats)
     wall = _time.perf_counter() - start
     done = int(stats[fs.STEPS])
     times = np.arange(done + 1) * step
     implicit = partitioned and coupling.implicit_muscles
     # the step the units are integrated at (the partitioned loop's muscle sub-steps)
-    muscle_step = step if fs.runs_monolithic_loop(switches) else step / coupling.muscle_substeps
+    muscle_step = step if kinds.monolithic else step / coupling.muscle_substeps
     stability = StabilityReport(float(stats[fs.WORST_RATIO]), float(stats[fs.WORST_TIME]),
                                 model.units[int(stats[fs.WORST_UNIT])].name
                                 if model.units else "", muscle_step,
