@@ -242,11 +242,15 @@ def test_ctrl_c_keeps_what_finished_and_the_rerun_completes_the_rest(client, tmp
     before = snapshot()
     time.sleep(2.0)
     assert snapshot() == before
-    rows = (out / "batch.csv").read_text().splitlines()
-    assert len(rows) == 3 and ",done," in rows[1]
+    rows = (out / "batch.csv").read_text().splitlines()[1:]
+    # the fits run at once on the cluster's workers: either may be the one that finished
+    # first (its report raised the Ctrl-C)
+    finished = [row for row in rows if ",done," in row]
+    assert len(rows) == 2 and finished
     # the other fit: never started ("not run") or stopped with its best so far written
-    assert ",not run," in rows[2] or ",interrupted," in rows[2] or ",done," in rows[2]
-    first = rows[1].split(",")[0]
+    other = rows[1] if rows[0] == finished[0] else rows[0]
+    assert ",not run," in other or ",interrupted," in other or ",done," in other
+    first = finished[0].split(",")[0]
     again = fit_many(targets, out=out, client=client, **FAST_FIT).set_index("name")
     assert again.loc[first, "status"] == "done earlier"
     # the other fit was cancelled (or, if its worker had started it, finished on its own)
