@@ -1,6 +1,7 @@
 """How long the README's test command takes from a cold Numba cache, idle and loaded.
 
 Run:  python benchmarks/bench_suite.py [--hogs 2] [--write-docs]
+      python benchmarks/bench_suite.py --versus "--dist loadgroup" --rounds 2 [--hogs 2]
 
 Runs ``python -m pytest -q -p no:cacheprovider`` (the README's command; ``pyproject.toml``
 makes it two processes with pytest-xdist) in this checkout with an empty Numba cache
@@ -11,6 +12,12 @@ two hogs give about 4). Prints the wall time, the tests passed and the load. Wit
 ``--write-docs`` the figure goes into the ``test-suite`` blocks of README.md and
 docs/index.md, with the date, cores and load beside it (idle and loaded runs each keep
 their own line: run once without and once with ``--hogs``).
+
+``--versus ARGS`` measures a change against a baseline in the same run: the suite with the
+pytest arguments ARGS added (the baseline) and as the README runs it, alternately, for
+``--rounds`` rounds; it prints each run's wall time and the CPU time of the suite's
+processes, then the ratios of the minima (new / baseline). The CPU time counts the work
+done (compiling, running), which the machine's load moves far less than the wall time.
 """
 
 from __future__ import annotations
@@ -19,6 +26,8 @@ import argparse
 import multiprocessing
 import os
 import re
+import resource
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -41,7 +50,13 @@ def spin(stop) -> None:
         pass
 
 
-def run_suite(hogs: int) -> dict:
+def children_cpu() -> float:
+    """User + system CPU time (s) of the waited-for child processes so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run_suite(hogs: int, extra: tuple[str, ...] = ()) -> dict:
     stop = multiprocessing.Event()
     spinners = [multiprocessing.Process(target=spin, args=(stop,), daemon=True)
                 for _ in range(hogs)]
@@ -57,11 +72,11 @@ def run_suite(hogs: int) -> dict:
     sampler.start()
     with tempfile.TemporaryDirectory(prefix="numba-cold-") as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), children_cpu()
         finished = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p",
-                                   "no:cacheprovider"], cwd=ROOT, env=env,
+                                   "no:cacheprovider", *extra], cwd=ROOT, env=env,
                                   capture_output=True, text=True)
-        wall = time.perf_counter() - start
+        wall, cpu = time.perf_counter() - start, children_cpu() - cpu
     done.set()
     stop.set()
     for p in spinners:
@@ -72,7 +87,7 @@ def run_suite(hogs: int) -> dict:
         if line.startswith(("FAILED", "ERROR")):
             print(line)
     passed = re.search(r"(\d+) passed", tail)
-    return {"wall": wall, "code": finished.returncode, "summary": tail,
+    return {"wall": wall, "cpu": cpu, "code": finished.returncode, "summary": tail,
             "passed": int(passed.group(1)) if passed else 0, "hogs": hogs,
             "load": (min(loads), sum(loads) / len(loads), max(loads)) if loads else (0, 0, 0)}
 
@@ -91,7 +106,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hogs", type=int, default=0)
     parser.add_argument("--write-docs", action="store_true")
+    parser.add_argument("--versus", metavar="ARGS",
+                        help="pytest arguments of a baseline run, compared in the same run")
+    parser.add_argument("--rounds", type=int, default=1)
     args = parser.parse_args()
+    if args.versus is not None:
+        compare(args.hogs, tuple(shlex.split(args.versus)), args.rounds)
+        return
     result = run_suite(args.hogs)
     line = describe(result)
     print(result["summary"])
@@ -108,6 +129,25 @@ def main() -> None:
         RECORD.parent.mkdir(parents=True, exist_ok=True)
         RECORD.write_text("".join(f"{k}\t{v}\n" for k, v in sorted(kept.items())))
         write_docs(kept)
+
+
+def compare(hogs: int, baseline: tuple[str, ...], rounds: int) -> None:
+    """The suite with the ``baseline`` pytest arguments and as the README runs it,
+    alternately (the baseline first in odd rounds), and the ratios of their minima."""
+    runs = {"baseline": [], "new": []}
+    for r in range(rounds):
+        order = ("baseline", "new") if r % 2 == 0 else ("new", "baseline")
+        for name in order:
+            result = run_suite(hogs, baseline if name == "baseline" else ())
+            runs[name].append(result)
+            low, mean, high = result["load"]
+            print(f"round {r + 1} {name:8s} wall {result['wall']:6.1f} s  CPU "
+                  f"{result['cpu']:6.1f} s  load {mean:.1f}  {result['summary']}", flush=True)
+    for what in ("wall", "cpu"):
+        base = min(x[what] for x in runs["baseline"])
+        new = min(x[what] for x in runs["new"])
+        print(f"{what}: baseline min {base:.1f} s, new min {new:.1f} s, new/baseline "
+              f"{new / base:.3f}")
 
 
 def write_docs(kept: dict) -> None:

@@ -15,9 +15,8 @@ import pytest
 
 from torquesim.solvers import fixed_step
 
-# Both tests read one fresh-interpreter compile (20 s): one test process runs them, so that it
-# is made once (pyproject's ``--dist loadgroup``), not once in each process.
-pytestmark = pytest.mark.xdist_group("compiled_code")
+# Both tests read one fresh-interpreter compile (20 s), made once: the tests of a file run in
+# one test process (pyproject's ``--dist loadfile``).
 
 SCRIPT = textwrap.dedent("""
     import json
