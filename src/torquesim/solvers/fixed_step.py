@@ -484,7 +484,7 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, general_body, 
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
     ``general_body``: see `check_body_kind`. The muscle solver (``sdirk_muscles`` or
     ``rk4_muscles``) is a switch, True for the one the packed ``coupling`` names and None for
-    the other (`step_loop_switches`), so Numba compiles only the code a run needs. (The
+    the other (`StepKinds`), so Numba compiles only the code a run needs. (The
     every-stage exchange is monolithic RK4: `run_step_loop` runs it in `rk4_monolithic`.)
     """
     seg = system[0]
