@@ -177,7 +177,7 @@ class FitProblem:
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
         self.step_kinds = fs.model_step_kinds(base, runs_monolithic(self.method),
-                                            self.coupling.to_array())
+                                              self.coupling.to_array())
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
         self.target_angles = np.ascontiguousarray(self.target.angles)

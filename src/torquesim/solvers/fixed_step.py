@@ -627,9 +627,9 @@ class StepKinds(NamedTuple):
     #: pivot (q̈ one division; `check_body_kind`).
     general_body: bool | None
     #: The partitioned loop's muscle part by SDIRK2 (IMEX) …
-    implicit_muscles: bool | None
+    sdirk_muscles: bool | None
     #: … or by RK4 (both None in the monolithic loop).
-    explicit_muscles: bool | None
+    rk4_muscles: bool | None
     #: Some unit has an activation state (`check_unit_kinds`).
     dynamics: bool | None
     #: The body on a free base (on the ground, with its contacts).
@@ -689,13 +689,13 @@ def _chosen_loop(kinds):
     if not general:
         def partitioned_one(kinds, system, y0, h, n_steps, coupling, out, stats):
             rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, None,
-                            kinds.implicit_muscles, kinds.explicit_muscles, kinds.dynamics,
+                            kinds.sdirk_muscles, kinds.rk4_muscles, kinds.dynamics,
                             None, None)
         return partitioned_one
 
     def partitioned_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
         rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, kinds.general_body,
-                        kinds.implicit_muscles, kinds.explicit_muscles, kinds.dynamics,
+                        kinds.sdirk_muscles, kinds.rk4_muscles, kinds.dynamics,
                         kinds.free_base, kinds.tree)
     return partitioned_chain
 
