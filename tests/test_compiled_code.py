@@ -51,16 +51,16 @@ def compiled():
 
 
 def test_the_elbow_compiles_no_chain_or_ground_code(compiled):
-    """The four general body solves (fixed or free base, chain or tree) and the ground's
+    """The general body solve (fixed or free base, chain or tree) and the ground's
     outputs are for bodies of two or more coordinates: an elbow run must not compile them
     (a cold elbow `simulate` and `fit` did, through branches decided at run time: 2x their
     first-run time)."""
     body = compiled["body"]
-    for name in ("_fixed_chain", "_fixed_tree", "_free_chain", "_free_tree", "ground_outputs",
+    for name in ("body_accelerations", "_free_base_terms", "ground_outputs",
                  "contact_time_constant"):
         assert body.get(name, []) == [], name
     switch = list(inspect.signature(fixed_step.rk4_monolithic.py_func).parameters) \
-        .index("general_body")
+        .index("body")
     assert compiled["fixed_step"]["rk4_monolithic"]
     # From Python the loop is chosen in Python: the compiled chooser is not compiled around it.
     assert compiled["fixed_step"].get("run_step_loop", []) == []

@@ -16,7 +16,7 @@ from torquesim.fitting.initial_guess import flight_samples, required_torques
 from torquesim.fitting.parameters import vector
 from torquesim.fitting.target import Target
 from torquesim.model.activation import Ramp
-from torquesim.model.body import GROUND_OUTPUTS, body_switches, body_work_size, ground_outputs
+from torquesim.model.body import GROUND_OUTPUTS, body_kinds, body_work_size, ground_outputs
 
 
 @pytest.fixture(scope="module")
@@ -49,9 +49,9 @@ def test_compiled_ground_outputs_are_the_results_columns(jump):
     n = jump.n_coordinates
     seg, joints = run.packed.segments, run.packed.joints.ravel()
     work, torque, out = np.zeros(body_work_size(n, seg)), np.zeros(n), np.empty(4)
-    tree = body_switches(seg, n)[2]
+    kinds = body_kinds(seg, n)
     for i in range(0, run.time.size, 97):
-        ground_outputs(run.states[i], n, seg, joints, torque, work, out, tree)
+        ground_outputs(run.states[i], n, seg, joints, torque, work, out, kinds)
         for k, name in enumerate(GROUND_OUTPUTS):
             assert out[k] == pytest.approx(columns[name][i], rel=1e-12, abs=1e-9), name
 

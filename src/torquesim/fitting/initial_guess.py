@@ -28,7 +28,7 @@ from scipy.optimize import least_squares
 
 from ..model.activation import activation
 from ..model.body import (
-    body_switches,
+    body_kinds,
     body_work_size,
     joint_accelerations,
     single_segment_acceleration,
@@ -50,7 +50,7 @@ FLIGHT_HEIGHT = 1.0e3
 def _accelerations(y, n, torque, seg, joints, work) -> np.ndarray:
     """q̈ (n,) at the state ``y`` under the joint ``torque``: the one-segment division on a
     fixed pivot (so that an elbow fit compiles no chain solve), else the general solve."""
-    if body_switches(seg, n)[0] is None:
+    if body_kinds(seg, n) is None:
         return np.array([single_segment_acceleration(y[0], torque[0], seg, joints)])
     joint_accelerations(y, n, torque, seg, joints, work)
     return work[n * n:n * n + n].copy()

@@ -33,9 +33,10 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
-from ..model.body import GROUND_OUTPUTS, body_work_size, ground_outputs
+from ..model.body import GROUND_OUTPUTS, body_work_size, ground_outputs, kind_on
 from ..solvers import fixed_step as fs
 from ..solvers.rates import unit_excitation
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
@@ -143,23 +144,40 @@ def simulate_population(first, count, population, levels, kinds, system, run, gr
         status[j] = run_status(stats, explicit_muscles)
         if ground_steps.shape[0] > 0 and status[j] == RUN_OK:
             _ground_outputs_of_run(states[j], ground_steps, n, seg_j, joints_j.ravel(),
-                                   outputs[j], kinds.free_base, kinds.tree)
+                                   outputs[j], kinds.body)
+
+
+def _ground_outputs_of_run(states, rows, n, seg, joints, out, body):
+    """`GROUND_OUTPUTS` at the ``rows`` of ``states`` into those columns of ``out``
+    (4 × rows of states) for a body on the ground (``body`` its `BodyKinds`, or None); see
+    `_ground_outputs_for`."""
+
+
+@overload(_ground_outputs_of_run, inline="always")
+def _ground_outputs_for(states, rows, n, seg, joints, out, body):
+    """Nothing, compiled or done, unless the body's kinds' types say it is on a free base
+    (then `_ground_rows`)."""
+    if isinstance(body, types.NoneType) or not kind_on(body, "free_base"):
+        def nothing(states, rows, n, seg, joints, out, body):
+            pass
+        return nothing
+
+    def on_ground(states, rows, n, seg, joints, out, body):
+        _ground_rows(states, rows, n, seg, joints, out, body)
+    return on_ground
 
 
 @njit(cache=True, error_model="numpy")
-def _ground_outputs_of_run(states, rows, n, seg, joints, out, free_base, tree):
-    """`GROUND_OUTPUTS` at the ``rows`` of ``states`` into those columns of ``out``
-    (4 × rows of states); ``free_base`` and ``tree`` the body's switches (`body_switches`):
-    with free_base None (no ground) nothing is compiled or done."""
-    if free_base is not None:
-        work = np.zeros(body_work_size(n, seg))
-        torque = np.zeros(n)
-        values = np.empty(4)
-        for r in range(rows.shape[0]):
-            k = rows[r]
-            ground_outputs(states[k], n, seg, joints, torque, work, values, tree)
-            for c in range(4):
-                out[c, k] = values[c]
+def _ground_rows(states, rows, n, seg, joints, out, body):
+    """`_ground_outputs_of_run` of a body on the ground."""
+    work = np.zeros(body_work_size(n, seg))
+    torque = np.zeros(n)
+    values = np.empty(4)
+    for r in range(rows.shape[0]):
+        k = rows[r]
+        ground_outputs(states[k], n, seg, joints, torque, work, values, body)
+        for c in range(4):
+            out[c, k] = values[c]
 
 
 @cache

@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, types
-from numba.extending import overload
 
 from ..errors import ModelError, check_range
 from .contact import (
@@ -187,10 +187,12 @@ def contacts_start(n):
 
 
 @njit(cache=True, error_model="numpy")
-def _free_base_terms(y, n, n_seg, seg, work):
+def _free_base_terms(y, n, n_seg, seg, work, free_base):
     """The free base's rows of M and Q (x, y) and the ground contacts' forces in Q, into the
     scratch of `joint_accelerations` (its trigonometry and speeds filled): apart, so that
-    the fixed-base solve carries none of this code."""
+    the fixed-base solve carries none of this code (``free_base`` None: nothing compiled)."""
+    if free_base is None:
+        return
     rhs = n * n
     sine = rhs + n
     cosine = sine + n
@@ -277,21 +279,43 @@ def joint_accelerations(y, n, muscle_torque, seg, joints, work):
     `contacts_start` on each contact's force and point (no output array: the solvers' step
     loops pay for every array argument).
 
-    Called from Python; compiled callers use `body_accelerations`, whose switches keep the
-    other bodies' code out of their compilation.
+    Called from Python; compiled callers use `body_accelerations` (or the step loops
+    `tree_accelerations`), whose `BodyKinds` keep the other bodies' code out of their
+    compilation.
     """
-    free_base, tree = body_switches(seg, n)[1:]
-    _BODIES[free_base is not None, tree is None](y, n, muscle_torque, seg, joints, work)
+    body_accelerations(y, n, muscle_torque, seg, joints, work,
+                       body_kinds(seg, n) or BodyKinds(None, None))
 
 
-def body_switches(seg, n) -> tuple:
-    """The switches (general_body, free_base, tree) of the packed body ``seg`` with n
-    coordinates, each True or None: two or more coordinates (the general mass-matrix solve,
-    else one segment on a fixed pivot), a free base, a tree (not a serial chain). None is a
-    type of its own to Numba: a compiled function given a None switch drops the code behind
-    ``if switch is not None`` when it compiles (`body_accelerations`)."""
-    return (switch(n > 1), switch(int(seg[0, SEG_COUNT_COLUMN]) != n),
-            switch(seg[0, SEG_SERIAL_COLUMN] == 0.0))
+class BodyKinds(NamedTuple):
+    """What the compiled code of a body of two or more coordinates is made of, each kind True
+    or None (`switch`): None is a type of its own to Numba, so code behind
+    ``if kinds.free_base is not None`` is typed as a constant branch that LLVM removes, and a
+    function given a None kind as an argument drops that code when it compiles. A body of
+    one segment on a fixed pivot has no BodyKinds (None: q̈ is one division,
+    `single_segment_acceleration`). `body_kinds` makes them."""
+
+    #: The body on a free base (on the ground, with its contacts).
+    free_base: bool | None
+    #: The body a tree, not a serial chain.
+    tree: bool | None
+
+
+def body_kinds(seg, n) -> BodyKinds | None:
+    """The `BodyKinds` of the packed body ``seg`` with n coordinates, None for one segment on
+    a fixed pivot."""
+    if n == 1:
+        return None
+    return BodyKinds(switch(int(seg[0, SEG_COUNT_COLUMN]) != n),
+                     switch(seg[0, SEG_SERIAL_COLUMN] == 0.0))
+
+
+def ground_kinds(seg, n) -> BodyKinds | None:
+    """The `BodyKinds` of the packed body ``seg`` with n coordinates when it is on the ground
+    (a free base), else None: the argument of compiled code that has something to do only on
+    the ground (its contacts)."""
+    kinds = body_kinds(seg, n)
+    return kinds if kinds is not None and kinds.free_base else None
 
 
 def switch(flag) -> bool | None:
@@ -299,37 +323,28 @@ def switch(flag) -> bool | None:
     return True if flag else None
 
 
-def switched_body(free_base, tree) -> tuple[bool, bool]:
-    """(free base, serial chain) read off the Numba types of the ``free_base`` and ``tree``
-    switches while compiling (a None type: off)."""
-    return (not isinstance(free_base, types.NoneType), isinstance(tree, types.NoneType))
-
-
-def body_accelerations(y, n, muscle_torque, seg, joints, work, free_base, tree):
-    """`joint_accelerations` inside compiled code, for the body the switches name
-    (`body_switches`); see `_body_accelerations_for`."""
-
-
-@overload(body_accelerations, inline="always")
-def _body_accelerations_for(y, n, muscle_torque, seg, joints, work, free_base, tree):
-    """Call the compiled solve of the body the switches' types name (fixed or free base,
-    serial chain or tree) while compiling, so that a caller compiles and links that one
-    solve only, not all four behind run-time branches (a cold elbow fit compiled all four:
-    about 4 s)."""
-    solve = _BODIES[switched_body(free_base, tree)]
-
-    def call(y, n, muscle_torque, seg, joints, work, free_base, tree):
-        solve(y, n, muscle_torque, seg, joints, work)
-    return call
+def kind_on(kinds, name: str) -> bool:
+    """Whether kind ``name`` of the NamedTuple ``kinds`` (`BodyKinds`,
+    `torquesim.solvers.fixed_step.StepKinds`) is on: read off the value (Python callers) or
+    off its Numba type while compiling (overloads choosing code by kind)."""
+    if isinstance(kinds, types.BaseNamedTuple):
+        return not isinstance(kinds.types[kinds.fields.index(name)], types.NoneType)
+    return getattr(kinds, name) is not None
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def tree_accelerations(y, n, nb, serial, muscle_torque, seg, joints, work):
-    """`joint_accelerations` with ``nb`` base coordinates (0: fixed, 2: free) and ``serial``
-    (each segment's parent the one before it) given as constants at the call site, so that
-    the inlined copy holds only its own body's code. The step loops call it with the
-    constants their ``free_base`` and ``tree`` switches give (measured: a runtime ``nb`` or
-    parent lookups in a serial chain made its solve 1.3–1.4x slower)."""
+def tree_accelerations(y, n, kinds, muscle_torque, seg, joints, work):
+    """`joint_accelerations` of a body of the `BodyKinds` ``kinds``, inlined into the step
+    loops (`body_accelerations` elsewhere). Its base coordinates nb (0: fixed, 2: free) and
+    ``serial`` (each segment's parent the one before it) are read off the kinds' types:
+    ``x is None`` of a None or bool type compiles to a constant, which LLVM folds, so the
+    code runs as fast as with literal constants (measured: a runtime ``nb`` or parent lookups
+    in a serial chain made its solve 1.3–1.4x slower) and is typed once. (An inlined
+    overload choosing among four solves by the kinds' types ran equally fast, but Numba
+    typed its implementation at every pass of type inference, six times: the jump's loops
+    compiled 1.4–1.5x slower, measured cold, 3 interleaved rounds.)"""
+    nb = 0 if kinds.free_base is None else 2
+    serial = kinds.tree is None
     n_seg = n - nb
     rhs = n * n
     sine = rhs + n
@@ -377,7 +392,7 @@ def tree_accelerations(y, n, nb, serial, muscle_torque, seg, joints, work):
             work[rhs + i] -= d_ab * sin_ab * work[speed + j] * work[speed + j]
             work[rhs + j] += d_ab * sin_ab * work[speed + i] * work[speed + i]
     if nb == 2:
-        _free_base_terms(y, n, n_seg, seg, work)
+        _free_base_terms(y, n, n_seg, seg, work, kinds.free_base)
     # LDLᵀ in place: L below the diagonal, D on it.
     for j in range(n):
         d = work[j * n + j]
@@ -404,31 +419,12 @@ def tree_accelerations(y, n, nb, serial, muscle_torque, seg, joints, work):
         work[rhs + nb + k] -= work[rhs + nb + p]
 
 
-# The four bodies, each compiled once (and cached) for the callers outside the step loops
-# (`joint_accelerations`, `body_accelerations`), rather than inlined into each of them.
 @njit(cache=True, error_model="numpy")
-def _fixed_chain(y, n, muscle_torque, seg, joints, work):
-    tree_accelerations(y, n, 0, True, muscle_torque, seg, joints, work)
-
-
-@njit(cache=True, error_model="numpy")
-def _fixed_tree(y, n, muscle_torque, seg, joints, work):
-    tree_accelerations(y, n, 0, False, muscle_torque, seg, joints, work)
-
-
-@njit(cache=True, error_model="numpy")
-def _free_chain(y, n, muscle_torque, seg, joints, work):
-    tree_accelerations(y, n, 2, True, muscle_torque, seg, joints, work)
-
-
-@njit(cache=True, error_model="numpy")
-def _free_tree(y, n, muscle_torque, seg, joints, work):
-    tree_accelerations(y, n, 2, False, muscle_torque, seg, joints, work)
-
-
-#: The four compiled bodies by (free base, serial chain).
-_BODIES = {(False, True): _fixed_chain, (False, False): _fixed_tree,
-           (True, True): _free_chain, (True, False): _free_tree}
+def body_accelerations(y, n, muscle_torque, seg, joints, work, kinds):
+    """`joint_accelerations` for compiled callers outside the step loops, of a body of the
+    `BodyKinds` ``kinds``: compiled (and cached) once per kinds, not inlined into each
+    caller."""
+    tree_accelerations(y, n, kinds, muscle_torque, seg, joints, work)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -538,7 +534,7 @@ GROUND_OUTPUTS = ("grf_x", "grf_y", "com_x", "com_y")
 
 
 @njit(cache=True, error_model="numpy")
-def ground_outputs(y, n, seg, joints, muscle_torque, work, out, tree):
+def ground_outputs(y, n, seg, joints, muscle_torque, work, out, kinds):
     """The total ground reaction force and the centre of mass of a body on a free base at
     state ``y`` into out[0:4] (`GROUND_OUTPUTS`), for the fit's compiled residual:
 
@@ -547,8 +543,8 @@ def ground_outputs(y, n, seg, joints, muscle_torque, work, out, tree):
     (B_a: first moment of segment a and everything distal to it about a's proximal joint,
     the same as in the free base's rows of M). Runs `body_accelerations` at ``y`` for the
     contact forces and the trigonometry; ``muscle_torque`` (n, zeros) and ``work`` are
-    scratch; ``tree``: True for a tree, None for a serial chain (`body_switches`)."""
-    body_accelerations(y, n, muscle_torque, seg, joints, work, True, tree)
+    scratch; ``kinds`` its `BodyKinds`."""
+    body_accelerations(y, n, muscle_torque, seg, joints, work, kinds)
     n_seg = int(seg[0, SEG_COUNT_COLUMN])
     nb = n - n_seg
     sine = n * n + n

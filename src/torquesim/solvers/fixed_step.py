@@ -33,8 +33,11 @@ from ..model.body import (
     SEG_COUNT_COLUMN,
     SEG_SERIAL_COLUMN,
     SPEED_LIMIT,
+    BodyKinds,
+    body_kinds,
     body_work_size,
     contact_time_constant,
+    kind_on,
     single_segment_acceleration,
     switch,
     tree_accelerations,
@@ -156,15 +159,17 @@ def _record_stiffness(stats, t, ratio, u):
 
 
 @njit(cache=True, error_model="numpy")
-def _record_contacts(stats, t, h, y, n, seg, work):
+def _record_contacts(stats, t, h, y, n, seg, work, free_base):
     """Update the contacts' stability guard at state ``y`` (time t, step h), right after
-    `joint_accelerations` there (see `contact_time_constant`)."""
-    tau, c = contact_time_constant(y, n, seg, work)
-    ratio = h / tau
-    if ratio > stats[CONTACT_RATIO]:
-        stats[CONTACT_RATIO] = ratio
-        stats[CONTACT_TIME] = t
-        stats[CONTACT_INDEX] = c
+    `joint_accelerations` there (see `contact_time_constant`). Contacts exist only on a free
+    base: with ``free_base`` None nothing is compiled."""
+    if free_base is not None:
+        tau, c = contact_time_constant(y, n, seg, work)
+        ratio = h / tau
+        if ratio > stats[CONTACT_RATIO]:
+            stats[CONTACT_RATIO] = ratio
+            stats[CONTACT_TIME] = t
+            stats[CONTACT_INDEX] = c
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -178,58 +183,51 @@ def _predict(preceding, preceding_before, this_before):
 
 
 @njit(cache=True, error_model="numpy")
-def check_body_kind(joints, seg, general_body, free_base, tree):
-    """Check that the number of coordinates (rows of the 2-D ``joints``) matches
-    ``general_body``, and the packed body ``seg`` ``free_base`` and ``tree``.
+def check_body(joints, seg, body):
+    """Check that the packed body matches ``body``, its `BodyKinds` or None.
 
-    The loops take ``general_body=True`` for bodies of two or more coordinates (the general
-    mass-matrix solve: chains, trees, a free base) and None for one segment on a fixed base,
-    where the acceleration is one division. None is a type of its own to Numba, so the
-    general branch (``if general_body is not None``) is removed from that compilation: the
+    The loops take None for one segment on a fixed base, where the acceleration is one
+    division, and a `BodyKinds` for bodies of two or more coordinates (the general
+    mass-matrix solve: chains, trees, a free base). None is a type of its own to Numba, so
+    the general branch (``if body is not None``) is removed from that compilation: the
     elbow's loop neither compiles the general solve (a bool False is a run-time branch, and
     was compiled: the elbow's monolithic loop took 9.6 s to compile with it, 4.6 s without)
     nor pays its array reference counting where it is not taken (14 % of the elbow's run).
     """
     n = joints.shape[0]
-    if n > 1 and general_body is None:
-        raise ValueError("a body of two or more coordinates needs general_body=True")
-    if (n != int(seg[0, SEG_COUNT_COLUMN])) != (free_base is not None):
-        raise ValueError("free_base must be True exactly for a body on a free base")
-    if (seg[0, SEG_SERIAL_COLUMN] == 0.0) != (tree is not None):
-        raise ValueError("tree must be True exactly for a body that is not a serial chain")
+    if body is None:
+        if n > 1:
+            raise ValueError("a body of two or more coordinates needs its BodyKinds")
+    else:
+        if (n != int(seg[0, SEG_COUNT_COLUMN])) != (body.free_base is not None):
+            raise ValueError("free_base must be True exactly for a body on a free base")
+        if (seg[0, SEG_SERIAL_COLUMN] == 0.0) != (body.tree is not None):
+            raise ValueError("tree must be True exactly for a body that is not a serial chain")
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _general_accelerations(y, n, torque, seg, joints, work, dy, row, free_base, tree):
+def _general_accelerations(y, n, torque, seg, joints, work, dy, row, body):
     """q̈ of a body of two or more coordinates into dy[row, n:2n] (the general mass-matrix
-    solve, `tree_accelerations`); ``free_base`` and ``tree`` True or None (compile-time
-    switches). The solve is typed once, with its base coordinates and serial flag read off
-    the switches' types: ``x is None`` of a None or bool type compiles to a constant, which
-    LLVM folds, so a loop runs the code of its own body only (free base or fixed, tree or
-    serial chain) at the speed of a solve given literal constants. (An inlined overload
-    choosing the solve by the switches' types ran equally fast, but Numba typed its
-    implementation six times over: the jump's loops compiled 1.4-1.5x slower, measured cold,
-    3 interleaved rounds.)"""
-    nb = 0 if free_base is None else 2
-    serial = tree is None
-    tree_accelerations(y, n, nb, serial, torque, seg, joints, work)
+    solve, `tree_accelerations`, inlined) of the `BodyKinds` ``body``."""
+    tree_accelerations(y, n, body, torque, seg, joints, work)
     for k in range(n):
         dy[row, n + k] = work[n * n + k]
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_monolithic(system, y0, h, n_steps, out, stats, general_body=None, dynamics=None,
-                   free_base=None, tree=None):
+def rk4_monolithic(system, y0, h, n_steps, out, stats, body, dynamics):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2) of the
-    model ``system`` = (segments, joints, units, profiles) (`PackedChain`).
+    model ``system`` = (segments, joints, units, profiles) (`PackedChain`) whose body is of
+    the kinds ``body`` (`BodyKinds`, None for one segment on a fixed pivot: `check_body`)
+    and whose units have activation dynamics (``dynamics`` True) or not (None; see
+    `unit_rates`).
 
     Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
     The activation profiles are evaluated once per stage time. Each stage seeds the CE root
-    finder with a prediction from the previous step (see `_predict`). ``general_body``: see
-    `check_body_kind`.
+    finder with a prediction from the previous step (see `_predict`).
     """
     seg = system[0]
-    check_body_kind(system[1], seg, general_body, free_base, tree)
+    check_body(system[1], seg, body)
     n, nu, width, units, joints, profiles = flat_arrays(system)
     size = y0.shape[0]
     y = y0.copy()
@@ -286,12 +284,10 @@ def rk4_monolithic(system, y0, h, n_steps, out, stats, general_body=None, dynami
                     _record_stiffness(stats, t, h / tau, u)
             for j in range(n):
                 k[s, j] = stage[n + j]
-            if general_body is not None:
-                _general_accelerations(stage, n, torque, seg, joints, work, k, s, free_base,
-                                       tree)
-                if free_base is not None:  # contacts exist only on a free base
-                    if s == 0 and contacts:
-                        _record_contacts(stats, t, h, stage, n, seg, work)
+            if body is not None:
+                _general_accelerations(stage, n, torque, seg, joints, work, k, s, body)
+                if s == 0 and contacts:
+                    _record_contacts(stats, t, h, stage, n, seg, work, body.free_base)
             else:
                 k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
         for u in range(nu):
@@ -313,12 +309,12 @@ def rk4_monolithic(system, y0, h, n_steps, out, stats, general_body=None, dynami
 
 
 @njit(cache=True, error_model="numpy")
-def _body_rk4(body, t, y, h, b, y_new, stats, general_body, free_base, tree):
+def _body_rk4(body_arrays, t, y, h, b, y_new, stats, body):
     """One RK4 step of the body part (q, q̇) = y[:2n] with joint torques
     τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
-    result into y_new[:2n]. ``body`` = (n, segments, flat joints, work array), ``b`` the
-    partitioned loop's scratch array, the switches as for `rk4_monolithic`."""
-    n, seg, joints, work = body
+    result into y_new[:2n]. ``body_arrays`` = (n, segments, flat joints, work array), ``b``
+    the partitioned loop's scratch array, ``body`` its kinds as for `rk4_monolithic`."""
+    n, seg, joints, work = body_arrays
     m = unit_states_start(n)  # q and q̇: the body part
     for s in range(4):
         if s == 0:
@@ -333,12 +329,11 @@ def _body_rk4(body, t, y, h, b, y_new, stats, general_body, free_base, tree):
             b[_TORQUE, j] = b[_TORQUE0, j] + fraction * b[_TORQUE_SLOPE, j] if s > 0 \
                 else b[_TORQUE0, j]
             b[_K1 + s, j] = b[_STAGE, n + j]
-        if general_body is not None:
+        if body is not None:
             _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
-                                   free_base, tree)
-            if free_base is not None:  # contacts exist only on a free base
-                if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
-                    _record_contacts(stats, t, h, b[_STAGE], n, seg, work)
+                                   body)
+            if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
+                _record_contacts(stats, t, h, b[_STAGE], n, seg, work, body.free_base)
         else:
             b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
                                                         joints)
@@ -461,8 +456,8 @@ def _muscle_sdirk2(muscles, t, y, h, substeps, b, stats, y_new, dynamics):
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, general_body, sdirk_muscles,
-                    rk4_muscles, dynamics, free_base, tree):
+def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics,
+                    implicit_muscles):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -471,14 +466,14 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, general_body, 
     Within a step each exchanged signal is affine in time: its step-start value plus a slope
     that is zero (hold), the previous step's change (linear extrapolation) or, once the other
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
-    ``general_body``: see `check_body_kind`. The muscle solver (``sdirk_muscles`` or
-    ``rk4_muscles``) is a switch, True for the one the packed ``coupling`` names and None for
-    the other (`StepKinds`), so Numba compiles only the code a run needs. (The
-    every-stage exchange is monolithic RK4: `run_step_loop` runs it in `rk4_monolithic`.)
+    ``body`` and ``dynamics``: as for `rk4_monolithic`; the muscle solver is SDIRK2
+    (``implicit_muscles`` True) or RK4 (None), which must be the packed ``coupling``'s, and
+    Numba compiles only that one (`_muscle_step`). (The every-stage exchange is monolithic RK4:
+    `run_step_loop` runs it in `rk4_monolithic`.)
     """
     seg = system[0]
-    check_body_kind(system[1], seg, general_body, free_base, tree)
-    if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (sdirk_muscles is not None) or \
+    check_body(system[1], seg, body)
+    if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (implicit_muscles is not None) or \
             int(coupling[ORDER]) == EVERY_STAGE:
         raise ValueError("the coupling array and the step loop's kinds disagree")
     order = int(coupling[ORDER])
@@ -496,7 +491,7 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, general_body, 
         out[0, i] = y[i]
     b = np.empty((_SCRATCH_ROWS, size))
     work = np.empty(body_work_size(n, seg))
-    body = (n, seg, joints, work)
+    body_arrays = (n, seg, joints, work)
     muscles = (n, nu, width, units, profiles)
     q_prev = y0[:n].copy()
     torque_prev = np.empty(n)
@@ -535,21 +530,21 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, general_body, 
             for i in range(size):
                 b[_OLD, i] = y1[i]
             if order == MUSCLES_FIRST:
-                _muscle_step(muscles, t, y, h, substeps, b, stats, y1, sdirk_muscles,
-                             rk4_muscles, dynamics)
+                _muscle_step(muscles, t, y, h, substeps, b, stats, y1, implicit_muscles,
+                             dynamics)
                 for j in range(n):
                     b[_Q, j] = y[j] + b[_Q_SLOPE, j]
                 joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
                 for j in range(n):
                     b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                _body_rk4(body, t, y, h, b, y1, stats, general_body, free_base, tree)
+                _body_rk4(body_arrays, t, y, h, b, y1, stats, body)
             else:
-                _body_rk4(body, t, y, h, b, y1, stats, general_body, free_base, tree)
+                _body_rk4(body_arrays, t, y, h, b, y1, stats, body)
                 if order == BODY_FIRST:
                     for j in range(n):
                         b[_Q_SLOPE, j] = y1[j] - y[j]
-                _muscle_step(muscles, t, y, h, substeps, b, stats, y1, sdirk_muscles,
-                             rk4_muscles, dynamics)
+                _muscle_step(muscles, t, y, h, substeps, b, stats, y1, implicit_muscles,
+                             dynamics)
             stats[NFEV_BODY] += 4
             stats[SWEEPS] += 1
             # Later sweeps see the other part's end-of-step values (waveform relaxation).
@@ -591,102 +586,84 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, general_body, 
             return
 
 
-@njit(cache=True, error_model="numpy")
-def _muscle_step(muscles, t, y, h, substeps, b, stats, y_new, sdirk, rk4, dynamics):
-    """Advance the muscle part over one body step with implicit SDIRK2 (``sdirk`` True) or
-    explicit RK4 (``rk4`` True); the other is None and not compiled."""
-    if sdirk is not None:
-        _muscle_sdirk2(muscles, t, y, h, substeps, b, stats, y_new, dynamics)
-    if rk4 is not None:
+def _muscle_step(muscles, t, y, h, substeps, b, stats, y_new, implicit, dynamics):
+    """Advance the muscle part over one body step with implicit SDIRK2 (`_muscle_sdirk2`,
+    ``implicit`` True) or explicit RK4 (`_muscle_rk4`, None); see `_muscle_step_of`."""
+
+
+@overload(_muscle_step, jit_options={"error_model": "numpy"})
+def _muscle_step_of(muscles, t, y, h, substeps, b, stats, y_new, implicit, dynamics):
+    """`_muscle_step` choosing its solver by the type of ``implicit`` while compiling, so
+    that a loop compiles only its own muscle solver (a None switch drops the code behind
+    ``if switch is not None``, but a bool switch does not drop an ``else``). Compiled, not
+    inlined: Numba types an inlined overload's implementation again at every pass of type
+    inference (measured: the elbow's IMEX loop compiled 5 % slower inlined)."""
+    if not isinstance(implicit, types.NoneType):
+        def sdirk2(muscles, t, y, h, substeps, b, stats, y_new, implicit, dynamics):
+            _muscle_sdirk2(muscles, t, y, h, substeps, b, stats, y_new, dynamics)
+        return sdirk2
+
+    def rk4(muscles, t, y, h, substeps, b, stats, y_new, implicit, dynamics):
         stats[NFEV_MUSCLE] += 4 * substeps - 1
         _muscle_rk4(muscles, t, y, h, substeps, b, y_new, dynamics)
+    return rk4
 
 
 class StepKinds(NamedTuple):
-    """What a run's step loop is made of, by name, each kind True or None (`switch`; None is
-    a type of its own to Numba, so a loop given a None kind drops the code behind
-    ``if kind is not None`` when it compiles, and a run compiles only its own code: a fit
-    one loop and one muscle solver, not all of them). `step_kinds` makes them; the loops
-    take them as their switch arguments (`_chosen_loop`)."""
+    """What a run's step loop is made of, each kind True or None (`switch`), the body's a
+    `BodyKinds` or None: a loop given None for a kind drops the code of that kind when it
+    compiles, and a run compiles only its own code (a fit one loop and one muscle solver,
+    not all of them). `step_kinds` makes them; `_chosen_loop` passes them to the loop."""
 
     #: The monolithic loop (`rk4_monolithic`; the every-stage exchange too), else the
-    #: partitioned one (`rk4_partitioned`).
+    #: partitioned one (`rk4_partitioned`): True or None.
     monolithic: bool | None
-    #: Two or more coordinates (the general mass-matrix solve), else one segment on a fixed
-    #: pivot (q̈ one division; `check_body_kind`).
-    general_body: bool | None
-    #: The partitioned loop's muscle part by SDIRK2 (IMEX) …
-    sdirk_muscles: bool | None
-    #: … or by RK4 (both None in the monolithic loop).
-    rk4_muscles: bool | None
-    #: Some unit has an activation state (`check_unit_kinds`).
+    #: The body's `BodyKinds`, None for one segment on a fixed pivot (q̈ one division;
+    #: `check_body`).
+    body: BodyKinds | None
+    #: Some unit has an activation state (`check_unit_kinds`): True or None.
     dynamics: bool | None
-    #: The body on a free base (on the ground, with its contacts).
-    free_base: bool | None
-    #: The body a tree, not a serial chain.
-    tree: bool | None
+    #: The partitioned loop's muscle part by SDIRK2 (IMEX), else by RK4 (None; None in the
+    #: monolithic loop).
+    implicit_muscles: bool | None
 
 
-def step_kinds(monolithic: bool, n_coordinates: int, coupling, dynamics: bool = False,
-               free_base: bool = False, tree: bool = False) -> StepKinds:
+def step_kinds(monolithic: bool, seg, n_coordinates: int, coupling,
+               dynamics: bool = False) -> StepKinds:
     """The `StepKinds` of the monolithic (else partitioned, under the packed ``coupling``)
-    technique on a body of ``n_coordinates`` (`ChainModel.n_coordinates`) whose units have
-    activation dynamics or not (``dynamics``: any unit has;
-    `ChainModel.has_activation_dynamics`), on a free base or not (``free_base``), a tree or a
-    serial chain (``tree``). The partitioned technique exchanging at every stage is monolithic
-    RK4 (docs/model.md §4) and runs the monolithic loop."""
+    technique on the packed body ``seg`` of ``n_coordinates`` (`ChainModel.n_coordinates`)
+    whose units have activation dynamics or not (``dynamics``: any unit has;
+    `ChainModel.has_activation_dynamics`). The partitioned technique exchanging at every
+    stage is monolithic RK4 (docs/model.md §4) and runs the monolithic loop."""
     monolithic = monolithic or int(coupling[ORDER]) == EVERY_STAGE
     implicit = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
-    return StepKinds(switch(monolithic), switch(n_coordinates > 1), switch(implicit),
-                     switch(not monolithic and not implicit), switch(dynamics),
-                     switch(free_base), switch(tree))
+    return StepKinds(switch(monolithic), body_kinds(seg, n_coordinates), switch(dynamics),
+                     switch(implicit))
 
 
 def model_step_kinds(model, monolithic: bool, exchange) -> StepKinds:
-    """`step_kinds` of a `ChainModel`: its coordinates, activation dynamics, base and tree
-    read off the model."""
-    return step_kinds(monolithic, model.n_coordinates, exchange,
-                      model.has_activation_dynamics, model.base == "free",
-                      not model.is_serial)
-
-
-def kind_on(kinds, name: str) -> bool:
-    """Whether kind ``name`` of ``kinds`` (`StepKinds`) is on: read off the value (Python
-    callers) or off its Numba type while compiling (`_run_chosen_compiled`)."""
-    if isinstance(kinds, types.BaseNamedTuple):
-        return not isinstance(kinds.types[kinds.fields.index(name)], types.NoneType)
-    return getattr(kinds, name) is not None
+    """`step_kinds` of a `ChainModel`: its body and activation dynamics read off the
+    model."""
+    return step_kinds(monolithic, model.segment_array(), model.n_coordinates, exchange,
+                      model.has_activation_dynamics)
 
 
 def _chosen_loop(kinds):
-    """The call of the step loop the kinds choose, with the kinds as its switch arguments
-    (`kind_on`): the same function runs from Python (calling the chosen loop's dispatcher)
-    and is compiled for compiled callers (`_run_chosen_compiled`). The loop gets the kinds as
-    the tuple's fields, typed bool or None as a Python True is (a literal True would compile
-    a second copy of the loop for compiled callers, measured: the jump's IMEX loop compiled
-    twice, 11–18 s each)."""
-    monolithic, general = kind_on(kinds, "monolithic"), kind_on(kinds, "general_body")
-    if monolithic and not general:  # one segment: general_body left out, its branch not compiled
-        def monolithic_one(kinds, system, y0, h, n_steps, coupling, out, stats):
-            rk4_monolithic(system, y0, h, n_steps, out, stats, dynamics=kinds.dynamics)
-        return monolithic_one
-    if monolithic:
-        def monolithic_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
-            rk4_monolithic(system, y0, h, n_steps, out, stats, kinds.general_body,
-                           kinds.dynamics, kinds.free_base, kinds.tree)
-        return monolithic_chain
-    if not general:
-        def partitioned_one(kinds, system, y0, h, n_steps, coupling, out, stats):
-            rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, None,
-                            kinds.sdirk_muscles, kinds.rk4_muscles, kinds.dynamics,
-                            None, None)
-        return partitioned_one
+    """The call of the step loop the kinds choose, with the body's kinds and the units'
+    switches as its arguments (`kind_on`): the same function runs from Python (calling the
+    chosen loop's dispatcher) and is compiled for compiled callers (`_run_chosen_compiled`).
+    The loop gets the kinds typed bool or None as a Python True is (a literal True would
+    compile a second copy of the loop for compiled callers, measured: the jump's IMEX loop
+    compiled twice, 11–18 s each)."""
+    if kind_on(kinds, "monolithic"):
+        def monolithic(kinds, system, y0, h, n_steps, coupling, out, stats):
+            rk4_monolithic(system, y0, h, n_steps, out, stats, kinds.body, kinds.dynamics)
+        return monolithic
 
-    def partitioned_chain(kinds, system, y0, h, n_steps, coupling, out, stats):
-        rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, kinds.general_body,
-                        kinds.sdirk_muscles, kinds.rk4_muscles, kinds.dynamics,
-                        kinds.free_base, kinds.tree)
-    return partitioned_chain
+    def partitioned(kinds, system, y0, h, n_steps, coupling, out, stats):
+        rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, kinds.body,
+                        kinds.dynamics, kinds.implicit_muscles)
+    return partitioned
 
 
 def _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats):

@@ -32,7 +32,7 @@ from numba import njit
 from ..model.activation import activation, activation_rate, activation_time_constant
 from ..model.body import (
     body_accelerations,
-    body_switches,
+    body_kinds,
     body_work_size,
     single_segment_acceleration,
 )
@@ -172,26 +172,28 @@ def joint_muscle_torques(q, x, units, n_units, out, n_joints):
 
 def chain_derivative(t, y, seg, joints, units, profiles):
     """dy/dt at time t (s) as a new array, for SciPy's solvers; takes the 2-D packed arrays of
-    `PackedChain` (`compiled_derivative` with the body's switches)."""
-    return compiled_derivative(t, y, seg, joints, units, profiles,
-                               *body_switches(seg, joints.shape[0]))
+    `PackedChain` (`compiled_derivative` with the body's kinds)."""
+    return compiled_derivative(t, y, (seg, joints, units, profiles),
+                               body_kinds(seg, joints.shape[0]))
 
 
 @njit(cache=True, error_model="numpy")
-def compiled_derivative(t, y, seg, joints, units, profiles, general_body, free_base, tree):
-    """`chain_derivative` with the body's switches (`body_switches`), so that only that
+def compiled_derivative(t, y, system, body):
+    """`chain_derivative` of the packed ``system`` (`PackedChain`) whose body is of the
+    kinds ``body`` (`body_kinds`: None for one segment on a fixed pivot), so that only that
     body's solve is compiled."""
-    n, nu, width, units, joints, profiles = flat_arrays((seg, joints, units, profiles))
+    seg = system[0]
+    n, nu, width, units, joints, profiles = flat_arrays(system)
     dy = np.empty(y.shape[0])
     torque = np.empty(n)
     joint_muscle_torques(y, y, units, nu, torque, n)
     for k in range(n):
         dy[k] = y[n + k]
-    if general_body is None:
+    if body is None:
         dy[1] = single_segment_acceleration(y[0], torque[0], seg, joints)
     else:
         work = np.empty(body_work_size(n, seg))
-        body_accelerations(y, n, torque, seg, joints, work, free_base, tree)
+        body_accelerations(y, n, torque, seg, joints, work, body)
         for k in range(n):  # a loop: a slice assignment compiles a shape check (1.6 s cold)
             dy[n + k] = work[n * n + k]
     for u in range(nu):

@@ -12,9 +12,9 @@ from ..model.body import (
     CONTACT_SLOTS,
     JOINT_ROW_SIZE,
     body_accelerations,
-    body_switches,
     body_work_size,
     contacts_start,
+    ground_kinds,
     passive_torque,
 )
 from ..model.chain import UNIT_ROW_SIZE, ChainModel, PackedChain
@@ -38,7 +38,7 @@ from .rates import (
 
 
 @njit(cache=True)
-def derived_quantities(time, states, system, outputs, free_base, tree):
+def derived_quantities(time, states, system, outputs, ground):
     """Per row of ``states`` (y): fill ``unit_out`` (rows × U × 5) with each unit's torque T
     (N·m), activation max(a, 0.01), CE velocity ω_cc (rad/s), CE time constant τ (s) and
     profile value e(t);
@@ -46,8 +46,8 @@ def derived_quantities(time, states, system, outputs, free_base, tree):
     moment arm × T) and end-stop
     torque T_p (N·m); and ``contact_out`` (rows × contacts × 4) with each contact's force
     and point. ``system``: the 2-D arrays of `PackedChain`; ``outputs`` = (unit_out,
-    joint_out, contact_out); ``free_base`` and ``tree`` the body's switches
-    (`body_switches`)."""
+    joint_out, contact_out); ``ground`` the `BodyKinds` of a body on the ground, else None
+    (`ground_kinds`: then no contact code is compiled)."""
     unit_out, joint_out, contact_out = outputs
     seg = system[0]
     n, nu, width, units, joints, profiles = flat_arrays(system)
@@ -58,9 +58,9 @@ def derived_quantities(time, states, system, outputs, free_base, tree):
     for i in range(time.shape[0]):
         y = states[i]
         joint_muscle_torques(y, y, units, nu, torque, n)
-        if free_base is not None:
+        if ground is not None:
             if n_contacts > 0:
-                body_accelerations(y, n, torque, seg, joints, work, free_base, tree)
+                body_accelerations(y, n, torque, seg, joints, work, ground)
                 for c in range(n_contacts):
                     for k in range(4):
                         contact_out[i, c, k] = work[start + CONTACT_SLOTS * c + k]
@@ -273,7 +273,7 @@ class SimulationResult:
         contact_out = np.zeros((self.time.size, len(self.model.contacts), 4))
         derived_quantities(self.time, self.states, tuple(self.packed),
                            (unit_out, joint_out, contact_out),
-                           *body_switches(self.packed.segments, nc)[1:])
+                           ground_kinds(self.packed.segments, nc))
         return unit_out, joint_out[:, nb:], contact_out
 
     def columns(self) -> dict[str, np.ndarray]:

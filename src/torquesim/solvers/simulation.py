@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import ModelError, SimulationError, check_range
-from ..model.body import body_switches
+from ..model.body import body_kinds
 from ..model.chain import ChainModel, as_chain
 from ..model.elbow import default_model
 from . import fixed_step as fs
@@ -384,12 +384,12 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
     grid = np.arange(n_out + 1) * output_step
     grid[-1] = model.duration
     calls = [0]
-    body = body_switches(packed.segments, model.n_coordinates)
+    body = body_kinds(packed.segments, model.n_coordinates)
 
     def rhs(t, y):
         calls[0] += 1
         # contiguous: SciPy passes views, which would compile a second specialization
-        return compiled_derivative(t, np.ascontiguousarray(y, dtype=float), *packed, *body)
+        return compiled_derivative(t, np.ascontiguousarray(y, dtype=float), tuple(packed), body)
 
     states = np.full((grid.size, model.state_size), np.nan)
     states[0] = y0
