@@ -1,5 +1,6 @@
-"""Cold start: the first `torquesim simulate` and the first `torquesim fit` with Numba's cache
-empty (each in a fresh temporary cache folder, NUMBA_CACHE_DIR), then the same commands warm.
+"""Cold start: the first `torquesim simulate` (the elbow, and the squat jump: a chain on the
+ground) and the first `torquesim fit` with Numba's cache empty (each in a fresh temporary
+cache folder, NUMBA_CACHE_DIR), then the same commands warm.
 
     python benchmarks/bench_cold_start.py
     python benchmarks/bench_cold_start.py --baseline /path/to/older/checkout/src --repeats 3
@@ -35,6 +36,8 @@ COMMANDS = {
     "`torquesim simulate` (the default curl, monolithic)": ["simulate"],
     "`torquesim simulate --method imex --step 1ms`": ["simulate", "--method", "imex", "--step",
                                                       "1ms"],
+    "`torquesim simulate --model builtin:squat-jump --method imex --step 0.25ms`":
+        ["simulate", "--model", "builtin:squat-jump", "--method", "imex", "--step", "0.25ms"],
     "`torquesim fit` (builtin:curl)": ["fit", "--quiet", "--overwrite", "--out", "{tmp}/fit"],
 }
 
