@@ -36,7 +36,7 @@ COMMANDS = {
     "`torquesim simulate` (the default curl, monolithic)": ["simulate"],
     "`torquesim simulate --method imex --step 1ms`": ["simulate", "--method", "imex", "--step",
                                                       "1ms"],
-    "`torquesim simulate --model builtin:squat-jump --method imex --step 0.25ms`":
+    "`torquesim simulate` (the squat jump, IMEX at 0.25 ms)":
         ["simulate", "--model", "builtin:squat-jump", "--method", "imex", "--step", "0.25ms"],
     "`torquesim fit` (builtin:curl)": ["fit", "--quiet", "--overwrite", "--out", "{tmp}/fit"],
 }
