@@ -1,14 +1,16 @@
 """Fixed-step solvers, compiled, for any chain: monolithic RK4 and partitioned RK4 with every
 coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX technique).
 
-The loops take the packed chain arrays (`PackedChain`) as one tuple and the run's kinds
-(`StepKinds`) as switch arguments, write the state y = (q, q̇, θ_cc) at every step into
-``out`` and fill a ``stats`` array (indices below). Scratch arrays are allocated once per
-run, the parameter arrays are read flat with row offsets, and the loops over units and
-joints sit in the step loops themselves, calling only loop-free inlined functions of
-`torquesim.solvers.rates`: a compiled helper holding a loop over array arguments costs Numba
-atomic reference counting at every call, which was measured to cost more than the model
-itself.
+The loops take the packed chain arrays (`PackedChain`) as one tuple, the body's kinds
+(`BodyKinds`, None for one segment) and the units' switches (`StepKinds`), write the state
+y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices below).
+Scratch arrays are allocated once per run, the parameter arrays are read flat with row
+offsets, and the loops over units and joints sit in the step loops themselves, calling only
+loop-free inlined functions of `torquesim.solvers.rates`: a compiled helper holding a loop
+over array arguments costs Numba atomic reference counting at every call, which was measured
+to cost more than the model itself (and so does an inlined one: Numba increfs its array
+arguments, and cannot prune that across its loops; one inlined right-hand side shared with
+the SciPy path made the 6-segment chain's monolithic step 1.07x slower).
 
 Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
 is evaluated (from the slope the CE root finder ends with, so at no extra cost) and the
