@@ -33,10 +33,9 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from numba import njit, types
-from numba.extending import overload
+from numba import njit
 
-from ..model.body import GROUND_OUTPUTS, body_work_size, ground_outputs, kind_on
+from ..model.body import GROUND_OUTPUTS, body_work_size, ground_kinds, ground_outputs
 from ..solvers import fixed_step as fs
 from ..solvers.rates import unit_excitation
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
@@ -112,8 +111,8 @@ def simulate_population(first, count, population, levels, kinds, system, run, gr
     `fitting.parameters`; fewer at its end) with the step loop of the kinds ``kinds``
     (`fixed_step.StepKinds`) on ``system`` = the packed (segments, joints, units), unit u
     starting at ``levels[u]``; ``run`` = (packed coupling, y0, step (s), number of steps,
-    whether the muscles are explicit). Fills ``results`` = (states, activations, outputs,
-    status), per candidate j: ``states[j]`` (steps + 1 rows of y),
+    whether the muscles are explicit, the body's `ground_kinds`). Fills ``results`` =
+    (states, activations, outputs, status), per candidate j: ``states[j]`` (steps + 1 rows of y),
     ``status[j]`` (`run_status`), the profiles' values at the first
     ``activations.shape[2]`` steps into ``activations[j]`` (units × those steps; none for a
     fit, every step for an optimisation) and, for a body on the ground, its
@@ -125,7 +124,7 @@ def simulate_population(first, count, population, levels, kinds, system, run, gr
     the step loops' reference counting on arrays shared between threads would contend
     (measured: the population scored 2.3x slower)."""
     seg, joints, units = system
-    coupling, y0, step, n_steps, explicit_muscles = run
+    coupling, y0, step, n_steps, explicit_muscles, ground = run
     states, activations, outputs, status = results
     n = joints.shape[0]
     for j in range(first, min(first + count, population.shape[0])):
@@ -144,40 +143,23 @@ def simulate_population(first, count, population, levels, kinds, system, run, gr
         status[j] = run_status(stats, explicit_muscles)
         if ground_steps.shape[0] > 0 and status[j] == RUN_OK:
             _ground_outputs_of_run(states[j], ground_steps, n, seg_j, joints_j.ravel(),
-                                   outputs[j], kinds.body)
-
-
-def _ground_outputs_of_run(states, rows, n, seg, joints, out, body):
-    """`GROUND_OUTPUTS` at the ``rows`` of ``states`` into those columns of ``out``
-    (4 × rows of states) for a body on the ground (``body`` its `BodyKinds`, or None); see
-    `_ground_outputs_for`."""
-
-
-@overload(_ground_outputs_of_run, inline="always")
-def _ground_outputs_for(states, rows, n, seg, joints, out, body):
-    """Nothing, compiled or done, unless the body's kinds' types say it is on a free base
-    (then `_ground_rows`)."""
-    if isinstance(body, types.NoneType) or not kind_on(body, "free_base"):
-        def nothing(states, rows, n, seg, joints, out, body):
-            pass
-        return nothing
-
-    def on_ground(states, rows, n, seg, joints, out, body):
-        _ground_rows(states, rows, n, seg, joints, out, body)
-    return on_ground
+                                   outputs[j], ground)
 
 
 @njit(cache=True, error_model="numpy")
-def _ground_rows(states, rows, n, seg, joints, out, body):
-    """`_ground_outputs_of_run` of a body on the ground."""
-    work = np.zeros(body_work_size(n, seg))
-    torque = np.zeros(n)
-    values = np.empty(4)
-    for r in range(rows.shape[0]):
-        k = rows[r]
-        ground_outputs(states[k], n, seg, joints, torque, work, values, body)
-        for c in range(4):
-            out[c, k] = values[c]
+def _ground_outputs_of_run(states, rows, n, seg, joints, out, ground):
+    """`GROUND_OUTPUTS` at the ``rows`` of ``states`` into those columns of ``out``
+    (4 × rows of states); ``ground`` the `BodyKinds` of a body on the ground, else None
+    (`ground_kinds`: then nothing is compiled or done)."""
+    if ground is not None:
+        work = np.zeros(body_work_size(n, seg))
+        torque = np.zeros(n)
+        values = np.empty(4)
+        for r in range(rows.shape[0]):
+            k = rows[r]
+            ground_outputs(states[k], n, seg, joints, torque, work, values, ground)
+            for c in range(4):
+                out[c, k] = values[c]
 
 
 @cache
@@ -214,12 +196,14 @@ def run_population(rows, kinds, coupling, y0, step: float, n_steps: int, arrays,
     outputs = np.zeros((m, len(GROUND_OUTPUTS), steps if len(ground_steps) else 1))
     status = np.zeros(m, dtype=np.int64)
     ground_steps = np.asarray(ground_steps, dtype=np.int64)
+    ground = ground_kinds(arrays[0], arrays[1].shape[0])
     threads = min(numba.get_num_threads(), m)
     block = -(-m // threads)  # candidates per thread, rounded up
 
     def run(thread):
         simulate_population(thread * block, block, rows, levels, kinds, tuple(arrays),
-                            (coupling, y0, step, n_steps, explicit_muscles), ground_steps,
+                            (coupling, y0, step, n_steps, explicit_muscles, ground),
+                            ground_steps,
                             (states, activations, outputs, status))
     others = [_pool(threads - 1).submit(run, t) for t in range(1, threads)]
     run(0)  # this thread takes the first block instead of waiting

@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, types
+from numba import njit
 
 from ..errors import ModelError, check_range
 from .contact import (
@@ -321,15 +321,6 @@ def ground_kinds(seg, n) -> BodyKinds | None:
 def switch(flag) -> bool | None:
     """A compile-time switch of the compiled code: True when ``flag`` holds, else None."""
     return True if flag else None
-
-
-def kind_on(kinds, name: str) -> bool:
-    """Whether kind ``name`` of the NamedTuple ``kinds`` (`BodyKinds`,
-    `torquesim.solvers.fixed_step.StepKinds`) is on: read off the value (Python callers) or
-    off its Numba type while compiling (overloads choosing code by kind)."""
-    if isinstance(kinds, types.BaseNamedTuple):
-        return not isinstance(kinds.types[kinds.fields.index(name)], types.NoneType)
-    return getattr(kinds, name) is not None
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -39,7 +39,6 @@ from ..model.body import (
     body_kinds,
     body_work_size,
     contact_time_constant,
-    kind_on,
     single_segment_acceleration,
     switch,
     tree_accelerations,
@@ -648,6 +647,14 @@ def model_step_kinds(model, monolithic: bool, exchange) -> StepKinds:
     model."""
     return step_kinds(monolithic, model.segment_array(), model.n_coordinates, exchange,
                       model.has_activation_dynamics)
+
+
+def kind_on(kinds, name: str) -> bool:
+    """Whether kind ``name`` of ``kinds`` (`StepKinds`) is on: read off the value (Python
+    callers) or off its Numba type while compiling (`_run_chosen_compiled`)."""
+    if isinstance(kinds, types.BaseNamedTuple):
+        return not isinstance(kinds.types[kinds.fields.index(name)], types.NoneType)
+    return getattr(kinds, name) is not None
 
 
 def _chosen_loop(kinds):
