@@ -154,7 +154,8 @@ def test_every_preset_is_a_start_fit_and_optimise_take_as_it_is(preset):
 
 
 @pytest.mark.parametrize("preset", list(PRESETS))
-def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, monkeypatch):
+def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, monkeypatch,
+                                                              capsys):
     """simulate and model run for real; compare, fit, optimise and batch sweep run their
     defaults' resolution and checks (steps that divide the duration, the fit's step and target,
     the optimisation's start) up to where their search starts, which a stub stops (the searches
@@ -171,7 +172,14 @@ def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, 
 
     model = ts.load_model(f"builtin:{preset}")
     spec = ["--model", f"builtin:{preset}"]
+    capsys.readouterr()
     assert main(["simulate", *spec, "--out", str(tmp_path / "run.csv")]) == 0
+    # No warning: where the default 0.1 ms breaks explicit RK4's limit (the jumps' stiff
+    # units), the run is at a verified step, said in a note (before, it warned and went on).
+    err = capsys.readouterr().err
+    assert "warning" not in err, err
+    plain = ts.simulate(model, "monolithic", 1e-4, advise=False, tolerance=None, check=False)
+    assert ("note: the default step 0.1 ms" in err) == plain.stability.exceeded, err
     assert main(["model", preset, "--out", str(tmp_path / "m.toml")]) == 0
 
     def study_check(_directory, chain, *, steps, **_):
@@ -352,3 +360,23 @@ def test_a_column_map_on_a_built_in_motion_is_refused(tmp_path, capsys, model):
                                str(out), "--quiet"])
     assert err.startswith("error: --column:") and "--target file" in err
     assert not out.exists()
+
+
+def test_a_default_step_past_the_stability_limit_gives_way_to_a_verified_one():
+    """simulate's step chosen from the model (step None): the curl keeps 0.1 ms; on the squat
+    jump, whose units are stiff (§5 of docs/model.md), 0.1 ms breaks explicit RK4's limit
+    and the run is at the largest step the advice search verifies: within the limit, within
+    the tolerance, and the same motion as IMEX at 0.25 ms to 0.01°."""
+    curl = ts.simulate(ts.default_model(), "monolithic", None)
+    assert curl.step == 1e-4 and "step_note" not in curl.settings and curl.message == ""
+    jump = ts.load_model("builtin:squat-jump")
+    run = ts.simulate(jump, "monolithic", None)
+    assert run.step < 1e-4 and run.message == "" and not run.stability.exceeded
+    assert f"ran at {run.step * 1e3:.4g} ms" in run.settings["step_note"]
+    assert run.settings["estimated_error_rad"] < math.radians(0.5)
+    imex = ts.simulate(jump, "imex", 2.5e-4)
+    stride = round(2.5e-4 / run.step)
+    assert np.max(np.abs(run.q[::stride] - imex.q)) < math.radians(0.01)
+    # a duration the default step does not divide: the largest step below it that does
+    odd = ts.simulate(ts.default_model(), "monolithic", None, duration=0.33333)
+    assert odd.step <= 1e-4 and round(0.33333 / odd.step) * odd.step == pytest.approx(0.33333)

@@ -133,9 +133,12 @@ def cli(context):
                    "zero-order hold exchange; imex: body explicit RK4, muscles implicit "
                    "(L-stable SDIRK2), stable at large steps; reference: SciPy Radau, "
                    "rtol 1e-10.")
-@click.option("--step", type=TIME, default="0.1ms", show_default=True,
+@click.option("--step", type=TIME, default=None,
               help="Fixed step of the RK4 methods (s; suffixes ms/us accepted). Must divide "
-                   "the duration. Output grid of 'reference' is 1 ms.")
+                   "the duration. Default: 0.1 ms (the largest step ≤ 0.1 ms that divides "
+                   "the duration), or where that breaks the explicit part's stability limit "
+                   "on the model (stiff units or contacts), the largest step a run verifies, "
+                   "said in a note. Output grid of 'reference' is 1 ms.")
 @click.option("--duration", type=TIME, default=None, help="Override the model's duration (s).")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Write the trajectory: .csv or OpenSim .sto/.mot (rad, SI), with a "
@@ -179,6 +182,8 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     _announce_size(model, method, step, duration, out_path)
     compiling_for(f"the {method} technique for {model_kind(model)}")
     result = run(model, method, step, duration=duration, tolerance=check if fixed else None)
+    if result.settings.get("step_note"):
+        click.echo(f"note: {result.settings['step_note']}", err=True)
     if result.message:
         click.echo(f"warning: {result.message}", err=True)
     if out_path:
@@ -393,9 +398,10 @@ def _quiet_compiling(quiet: bool) -> None:
 
 
 def _announce_size(model, method, step, duration, out_path) -> None:
-    """One line on stderr before a run whose steps or output table are large."""
+    """One line on stderr before a run whose steps or output table are large (``step``
+    None: the default step, `simulate`'s first choice)."""
     from .errors import check_range
-    from .solvers.simulation import DEFAULT_OUTPUT_STEP, step_count
+    from .solvers.simulation import DEFAULT_OUTPUT_STEP, DEFAULT_STEP, divisor_step, step_count
 
     span = model.duration if duration is None else check_range(
         "duration", duration, 0.0, 600.0, low_open=True, unit="s")
@@ -403,7 +409,7 @@ def _announce_size(model, method, step, duration, out_path) -> None:
         rows = round(span / DEFAULT_OUTPUT_STEP) + 1
         steps = 0
     else:
-        steps = step_count(span, step)
+        steps = step_count(span, step or divisor_step(span, DEFAULT_STEP))
         rows = steps + 1
     columns = 1 + 3 * model.n_joints + 4 * model.n_units
     size = rows * columns * 23  # a float written in full precision, with its separator

@@ -58,7 +58,7 @@ def step_count(duration: float, step: float, field: str = "step") -> int:
 def simulate(
     model=None,
     method: str = "monolithic",
-    step: float = DEFAULT_STEP,
+    step: float | None = DEFAULT_STEP,
     *,
     duration: float | None = None,
     coupling: Coupling | None = None,
@@ -84,8 +84,12 @@ def simulate(
         ``reference``: SciPy Radau at ``rtol`` (default 1e-10) and ``atol`` (default 1e-12; on
         a body with ground contacts 1e-10, `GROUND_REFERENCE_ATOL`). ``scipy:RK45`` etc.: that
         SciPy solver on the whole system.
-    step : float
-        Fixed step for the RK4 methods, s. Must divide the duration. Default 0.1 ms.
+    step : float or None
+        Fixed step for the RK4 methods, s. Must divide the duration. Default 0.1 ms. None:
+        chosen from the model (`default_step_run`): the largest step ≤ 0.1 ms that divides
+        the duration, or, where a run at it breaks the stability limit of the technique's
+        explicit part (stiff units or contacts), the largest step a run verifies
+        (`verified_step`), said in ``result.settings["step_note"]``.
     duration : float, optional
         Overrides the model's duration, s.
     output_step : float
@@ -127,10 +131,13 @@ def simulate(
                              "muscle solver; allowed: sdirk2")
         if tolerance is not None:
             check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
-        result = _fixed_step(model, packed, y0, method, step, coupling)
-        if advise and (not result.success or result.stability.exceeded):
-            result = _with_advice(result, verified_step(model, packed, y0, method, step,
-                                                        coupling))
+        if step is None:
+            result = default_step_run(model, packed, y0, method, coupling)
+        else:
+            result = _fixed_step(model, packed, y0, method, step, coupling)
+            if advise and (not result.success or result.stability.exceeded):
+                result = _with_advice(result, verified_step(model, packed, y0, method, step,
+                                                            coupling))
         if tolerance is not None and result.success:
             result = _with_error_estimate(result, model, packed, y0, method, coupling,
                                           tolerance)
@@ -297,6 +304,31 @@ def verified_step(model, packed, y0, method, step, coupling) -> float | None:
         if half.success and _max_difference(trial, half) <= ADVICE_AGREEMENT:
             return h
     return None
+
+
+def default_step_run(model, packed, y0, method, coupling) -> SimulationResult:
+    """A fixed-step run at the step chosen from the model: the largest step ≤ `DEFAULT_STEP`
+    that divides the duration; where that run fails or breaks the stability limit of the
+    technique's explicit part (the muscle part of monolithic and partitioned RK4 on stiff
+    units, the contacts of every technique), the run at the largest step `verified_step`
+    finds, with a note saying so in ``settings["step_note"]``. (Where none is found, the
+    run at the first step, whose message then says what to change.)"""
+    step = divisor_step(model.duration, DEFAULT_STEP)
+    result = _fixed_step(model, packed, y0, method, step, coupling)
+    if result.success and not result.stability.exceeded:
+        return result
+    safe = verified_step(model, packed, y0, method, step, coupling)
+    if safe is None:
+        return _with_advice(result, safe)
+    report = result.stability
+    where = report.unit if report.in_contact else f"the {report.unit} unit"
+    chosen = _fixed_step(model, packed, y0, method, safe, coupling)
+    others = "" if math.isinf(report.limit) or report.in_contact else \
+        " (method 'imex', implicit muscles, is stable at larger steps)"
+    note = (f"the default step {step * 1e3:.4g} ms is beyond explicit RK4's stability limit "
+            f"in {where} of {model.name}; ran at {safe * 1e3:.4g} ms, the largest step a run "
+            f"verified{others}")
+    return replace(chosen, settings={**chosen.settings, "step_note": note})
 
 
 def _with_advice(result: SimulationResult, safe: float | None) -> SimulationResult:
