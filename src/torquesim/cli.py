@@ -135,10 +135,10 @@ def cli(context):
                    "rtol 1e-10.")
 @click.option("--step", type=TIME, default=None,
               help="Fixed step of the RK4 methods (s; suffixes ms/us accepted). Must divide "
-                   "the duration. Default: 0.1 ms (the largest step ≤ 0.1 ms that divides "
-                   "the duration), or where that breaks the explicit part's stability limit "
-                   "on the model (stiff units or contacts), the largest step a run verifies, "
-                   "said in a note. Output grid of 'reference' is 1 ms.")
+                   "the duration. Default: 0.1 ms (else the largest step below it that "
+                   "divides the duration), or where that breaks the explicit part's "
+                   "stability limit on the model (stiff units or contacts), the largest step "
+                   "a run verifies, said in a note. Output grid of 'reference' is 1 ms.")
 @click.option("--duration", type=TIME, default=None, help="Override the model's duration (s).")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Write the trajectory: .csv or OpenSim .sto/.mot (rad, SI), with a "
@@ -401,7 +401,7 @@ def _announce_size(model, method, step, duration, out_path) -> None:
     """One line on stderr before a run whose steps or output table are large (``step``
     None: the default step, `simulate`'s first choice)."""
     from .errors import check_range
-    from .solvers.simulation import DEFAULT_OUTPUT_STEP, DEFAULT_STEP, divisor_step, step_count
+    from .solvers.simulation import DEFAULT_OUTPUT_STEP, default_fixed_step, step_count
 
     span = model.duration if duration is None else check_range(
         "duration", duration, 0.0, 600.0, low_open=True, unit="s")
@@ -409,7 +409,7 @@ def _announce_size(model, method, step, duration, out_path) -> None:
         rows = round(span / DEFAULT_OUTPUT_STEP) + 1
         steps = 0
     else:
-        steps = step_count(span, step or divisor_step(span, DEFAULT_STEP))
+        steps = step_count(span, step or default_fixed_step(span))
         rows = steps + 1
     columns = 1 + 3 * model.n_joints + 4 * model.n_units
     size = rows * columns * 23  # a float written in full precision, with its separator

@@ -58,7 +58,7 @@ def step_count(duration: float, step: float, field: str = "step") -> int:
 def simulate(
     model=None,
     method: str = "monolithic",
-    step: float | None = DEFAULT_STEP,
+    step: float | None = None,
     *,
     duration: float | None = None,
     coupling: Coupling | None = None,
@@ -85,11 +85,11 @@ def simulate(
         a body with ground contacts 1e-10, `GROUND_REFERENCE_ATOL`). ``scipy:RK45`` etc.: that
         SciPy solver on the whole system.
     step : float or None
-        Fixed step for the RK4 methods, s. Must divide the duration. Default 0.1 ms. None:
-        chosen from the model (`default_step_run`): the largest step ≤ 0.1 ms that divides
-        the duration, or, where a run at it breaks the stability limit of the technique's
-        explicit part (stiff units or contacts), the largest step a run verifies
-        (`verified_step`), said in ``result.settings["step_note"]``.
+        Fixed step for the RK4 methods, s. Must divide the duration. Default (None): chosen
+        from the model (`default_step_run`): 0.1 ms (`default_fixed_step`), or, where a run
+        at it breaks the stability limit of the technique's explicit part (stiff units or
+        contacts), the largest step a run verifies (`verified_step`), said in
+        ``result.settings["step_note"]``.
     duration : float, optional
         Overrides the model's duration, s.
     output_step : float
@@ -306,14 +306,24 @@ def verified_step(model, packed, y0, method, step, coupling) -> float | None:
     return None
 
 
+def default_fixed_step(duration: float) -> float:
+    """The first choice of a fixed step on a run of ``duration`` s: `DEFAULT_STEP` where it
+    divides the duration (within 1e-9 s, as `step_count` asks), else the largest step
+    below it that does (`divisor_step`)."""
+    n = round(duration / DEFAULT_STEP)
+    if n >= 1 and abs(n * DEFAULT_STEP - duration) <= 1e-9:
+        return DEFAULT_STEP
+    return divisor_step(duration, DEFAULT_STEP)
+
+
 def default_step_run(model, packed, y0, method, coupling) -> SimulationResult:
-    """A fixed-step run at the step chosen from the model: the largest step ≤ `DEFAULT_STEP`
-    that divides the duration; where that run fails or breaks the stability limit of the
+    """A fixed-step run at the step chosen from the model: `default_fixed_step`; where that
+    run fails or breaks the stability limit of the
     technique's explicit part (the muscle part of monolithic and partitioned RK4 on stiff
     units, the contacts of every technique), the run at the largest step `verified_step`
     finds, with a note saying so in ``settings["step_note"]``. (Where none is found, the
     run at the first step, whose message then says what to change.)"""
-    step = divisor_step(model.duration, DEFAULT_STEP)
+    step = default_fixed_step(model.duration)
     result = _fixed_step(model, packed, y0, method, step, coupling)
     if result.success and not result.stability.exceeded:
         return result
