@@ -380,3 +380,17 @@ def test_a_default_step_past_the_stability_limit_gives_way_to_a_verified_one():
     # a duration the default step does not divide: the largest step below it that does
     odd = ts.simulate(ts.default_model(), "monolithic", None, duration=0.33333)
     assert odd.step <= 1e-4 and round(0.33333 / odd.step) * odd.step == pytest.approx(0.33333)
+
+
+def test_model_names_a_bad_preset_before_asking_what_to_write(capsys):
+    assert main(["model", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "NAME" in err and "'nope'" in err and "squat-jump" in err
+
+
+def test_an_error_estimate_that_cannot_be_made_is_said_in_words():
+    """One 3 s IMEX step: the runs at half the step fail, so there is no estimate; the
+    warning says so, not 'estimated max angle error inf°'."""
+    run = ts.simulate(ts.default_model(), "imex", 3.0)
+    assert math.isinf(run.settings["estimated_error_rad"])
+    assert "no error estimate stands" in run.message and "inf" not in run.message

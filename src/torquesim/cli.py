@@ -472,15 +472,15 @@ def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, a
     from .io.model_file import load_model, save_model
     from .model.presets import PREFIX, PRESETS
 
+    if name not in PRESETS and not name.startswith(PREFIX) and not Path(name).exists():
+        raise ModelError("NAME", f"{name!r} is neither a built-in model nor a file; allowed: "
+                         f"{', '.join(PRESETS)} or a model file")
     if out_path is None and plot_path is None and conventions_path is None:
         raise ModelError("--out", "nothing to write; allowed: --out FILE.toml, --plot FILE.png "
                          "and/or --conventions FILE.png")
     _check_output(out_path, (".toml",), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
     _check_output(conventions_path, PLOT_SUFFIXES, "--conventions")
-    if name not in PRESETS and not name.startswith(PREFIX) and not Path(name).exists():
-        raise ModelError("NAME", f"{name!r} is neither a built-in model nor a file; allowed: "
-                         f"{', '.join(PRESETS)} or a model file")
     source = PREFIX + name if name in PRESETS else name
     chain = load_model(source)
     personal = (body_mass is not None or height is not None or sex is not None

@@ -399,7 +399,10 @@ def _with_error_estimate(result, model, packed, y0, method, coupling, tolerance)
         if not runs_monolithic(method) and not coupling.implicit_muscles:
             advice += ", or method 'imex'"
         warning = (f"estimated max angle error {math.degrees(estimate):.3g}° ({how}) "
-                   f"exceeds the tolerance {math.degrees(tolerance):.3g}°: {advice}")
+                   f"exceeds the tolerance {math.degrees(tolerance):.3g}°: {advice}"
+                   if math.isfinite(estimate) else
+                   f"the run at half the step failed, so no error estimate stands for this "
+                   f"run: {advice}")
         message = f"{message} Also: {warning}" if message else warning
     return replace(result, settings=settings, message=message)
 
