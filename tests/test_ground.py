@@ -403,6 +403,10 @@ def test_bad_contact_parameters_and_postures_name_the_field():
         GroundContact("toe", stiffness=-1.0)
     with pytest.raises(ts.ModelError, match=r"friction.*\[0, 5\]"):
         GroundContact("toe", friction=9.0)
+    # a slip speed so small that friction's time constant (m·v_s/(μ·F)) is below a µs: before,
+    # 1e-30 m/s ran, flagged step/τ = 7e28 at every step the user could give
+    with pytest.raises(ts.ModelError, match=r"slip_speed.*\[0.001, 1\] m/s"):
+        GroundContact("toe", slip_speed=1e-30)
     model = ts.load_model("builtin:squat-jump")
     with pytest.raises(ts.ModelError) as info:
         model.replace_joint("hip", initial_angle=-0.3)  # trunk far back: it would fall

@@ -86,7 +86,7 @@ FIELD_DOCS = {
     "exponent": "n (1.5: Hertz). [1, 3]",
     "damping": "s/m, c (Hunt-Crossley). [0, 100]",
     "friction": "mu of the regularised Coulomb friction. [0, 5]",
-    "slip_speed": "m/s, v_s of the friction regularisation. (0, 1]",
+    "slip_speed": "m/s, v_s of the friction regularisation. [0.001, 1]",
     "deactivation_time": "s, tau_deact of da/dt (Thelen 2003: 0.050). (0, 1]",
     "second_joint": "a two-joint unit: the adjacent joint it also spans",
     "second_arm": "its moment arm there relative to the one at joint, signed (+: towards "
