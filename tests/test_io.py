@@ -1,5 +1,6 @@
 """Model TOML files and result tables."""
 
+import json
 import math
 
 import numpy as np
@@ -178,3 +179,21 @@ def test_summaries_are_json_every_reader_accepts():
     data = json.loads(text, parse_constant=refuse)
     assert data == {"gain_percent": None, "errors": [None, 0.5, 3], "values": [1.0, None],
                     "ok": True, "n": 2.5}
+
+
+def test_a_table_torquesim_wrote_is_read_back_as_a_target_in_its_own_units(tmp_path):
+    """simulate --out run.csv, then fit --target run.csv: the table holds radians and its
+    manifest says so; a CSV without one is read in degrees (the lab's default)."""
+    from torquesim.fitting.target import load_target
+
+    model = ts.default_model().replace(duration=0.2)
+    result = ts.simulate(model, "monolithic", 1e-4)
+    path = ts.save_result(result, tmp_path / "run.csv")
+    info = json.loads((tmp_path / "run.csv.manifest.json").read_text())
+    assert info["units"]["angles"] == "rad"
+    target = load_target(str(path), model)
+    expected = np.interp(target.time, result.time, result.q[:, 0])
+    np.testing.assert_allclose(target.angles[0], expected, rtol=1e-12, atol=1e-15)
+    (tmp_path / "run.csv.manifest.json").unlink()
+    in_degrees = load_target(str(path), model)
+    np.testing.assert_allclose(in_degrees.angles[0], np.radians(expected), rtol=1e-12)

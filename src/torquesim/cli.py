@@ -905,7 +905,13 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
                                     grf_components, lab_axes)
         for line in lines:
             click.echo(line, err=line.startswith("warning"))
-    if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt"):
+    from .io.target_file import manifest_units
+
+    if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt") and \
+            manifest_units(target_spec) is not None:
+        click.echo(f"note: {target_spec}: angles read in {manifest_units(target_spec)}, as "
+                   "the manifest beside it (written by torquesim) says", err=True)
+    elif units is None and Path(target_spec).suffix.lower() in (".csv", ".txt"):
         for joint, angle in zip(target.joints, target.angles, strict=True):
             if np.max(np.abs(np.degrees(angle))) <= math.pi:
                 click.echo(f"warning: every target angle of {joint} is within ±3.2 degrees; "

@@ -116,6 +116,8 @@ def manifest(result, **extra) -> dict:
     stability = result.stability
     return {
         **provenance(),
+        "units": {"time": "s", "angles": "rad", "angular_speeds": "rad/s",
+                  "torques": "N·m", "forces": "N", "positions": "m"},
         "method": result.method,
         "step_s": result.step,
         "settings": result.settings,

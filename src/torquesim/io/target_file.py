@@ -18,6 +18,24 @@ UNITS = ("deg", "rad")
 MIN_SAMPLES = 5
 
 
+def manifest_units(path) -> str | None:
+    """The angle units of a table torquesim wrote (``save_result``): "rad", read off the
+    ``<path>.manifest.json`` beside it (its ``units``; every torquesim table holds radians,
+    those written before the key too); None when no torquesim manifest is there."""
+    import json
+
+    beside = Path(path).with_name(Path(path).name + ".manifest.json")
+    try:
+        info = json.loads(beside.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(info, dict) or "torquesim_version" not in info:
+        return None
+    units = info.get("units", {}).get("angles", "rad") if isinstance(info.get("units"), dict) \
+        else "rad"
+    return units if units in UNITS else None
+
+
 def _fail(path: Path, message: str, field: str = "target") -> ModelError:
     return ModelError(field, f"{path.name}: {message}")
 
@@ -59,7 +77,8 @@ def read_angle_table(
     """Time (s) and every angle column (rad) of a CSV or OpenSim ``.mot``/``.sto`` file.
 
     CSV (comma, semicolon or tab separated; lines starting with ``#`` are comments): a header
-    row with ``time`` and angle columns; ``units`` is ``"deg"`` (default) or ``"rad"``.
+    row with ``time`` and angle columns; ``units`` is ``"deg"`` (default) or ``"rad"``; a
+    table torquesim wrote is read in the units its manifest gives (`manifest_units`: rad).
     Storage files (OpenSim inverse kinematics): header lines up to ``endheader``, then
     tab/space-separated columns named after the coordinates; ``inDegrees=yes|no`` in the
     header gives the units (an explicit ``units`` that contradicts it is an error; without the
@@ -96,6 +115,8 @@ def read_angle_table(
             units = stated
         rows = [(i + 1, line.split()) for i, line in enumerate(lines) if i >= first]
     elif suffix in (".csv", ".txt"):
+        if units is None:
+            units = manifest_units(path)
         try:
             sample = [line for line in lines if not line.lstrip().startswith("#")][:20]
             dialect = csv.Sniffer().sniff("\n".join(sample), delimiters=",;\t")
