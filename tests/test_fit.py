@@ -747,3 +747,20 @@ def test_a_model_s_own_ramps_as_the_fit_s_start_leave_its_activation_unchanged(p
     t = np.linspace(0.0, model.duration, 301)
     for unit, same, level in zip(model.units, again.units, levels, strict=True):
         assert np.array_equal(unit.activation(t, level), same.activation(t, level)), unit.name
+
+
+@pytest.mark.parametrize("samples", [10_001, 60_001])
+def test_a_target_of_very_many_exact_samples_is_smoothed_through_fewer(samples):
+    """SciPy's cross-validation fails on very many samples: on 10 001 exact ones of a smooth
+    3 s motion its spline is 0.7 rad off, on 60 001 it stops ("ill-posed"; the arm raise's
+    own 30 001 at 0.1 ms: a traceback from `fit`; SciPy 1.17). The target's spline, through
+    at most 4 000 of them, follows the motion and its speed."""
+    from torquesim.fitting.target import Target
+
+    t = np.linspace(0.0, 3.0, samples)
+    angle = 0.5 * np.sin(2 * np.pi * t / 3) + 0.2 * t**2
+    speed = np.pi / 3 * np.cos(2 * np.pi * t / 3) + 0.4 * t
+    spline = Target(t, angle[None, :], ("elbow",)).smoothed()
+    inner = (t > 0.2) & (t < 2.8)  # the natural ends (q̈ = 0) are not the motion's
+    assert np.max(np.abs(spline(t) - angle)) < 1e-4
+    assert np.max(np.abs(spline.derivative(1)(t[inner]) - speed[inner])) < 1e-3
