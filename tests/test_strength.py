@@ -287,10 +287,34 @@ def test_bad_options_are_one_line_errors(tmp_path, capsys):
 
 
 def test_an_invalid_held_value_is_refused_naming_it(subject, passive):
-    with pytest.raises(ts.ModelError, match="max_velocity"):
+    """Before any search, with its field's range (before, after the search, blaming the
+    trials)."""
+    with pytest.raises(ts.ModelError, match=r"max_velocity=-3: .*\(0, 200\] rad/s") as info:
         fit_strength(_trials(subject, noise=1.0, eccentric=False)[:3],
                      _preset_unit().parameters, -1,
                      StrengthSettings(hold={"max_velocity": -3.0}), passive)
+    assert info.value.field == "hold"
+
+
+def test_torques_at_fewer_than_three_angles_hold_the_torque_angle_curve(subject, passive):
+    """One or two isometric trials cannot place the parabola's peak and curvature (one trial
+    fitted θ_opt = 1.5° to its plateau's 1° of CE angle): they are held, T0 fitted to the
+    trials' torque at those angles; three angles, or a sweep, fit them."""
+    start = _preset_unit().parameters
+    trials = _trials(subject, noise=0.0, eccentric=False)
+    for chosen in ([trials[0]], [trials[0], trials[2]]):
+        fit = fit_strength(chosen, start, -1, StrengthSettings(starts=2), passive)
+        for name in ("optimal_angle", "angle_curvature"):
+            assert fit.status[name] == "held (torques at fewer than 3 angles)"
+            assert getattr(fit.parameters, name) == getattr(start, name)
+        assert fit.status["isometric_torque"] == "fitted"
+    for chosen in (trials[:3], [trials[4]]):  # three isometric angles; one concentric sweep
+        fit = fit_strength(chosen, start, -1, StrengthSettings(starts=2), passive)
+        assert fit.status["optimal_angle"] == "fitted"
+    relaxed = [replace(trials[0], torque=np.zeros_like(trials[0].torque))]
+    with pytest.raises(ts.ModelError, match="no torque in the unit's direction") as info:
+        fit_strength(relaxed, start, -1, StrengthSettings(starts=2))
+    assert info.value.field == "trials"
 
 
 def test_a_unit_for_both_legs_gets_twice_one_leg_s_torque(tmp_path):

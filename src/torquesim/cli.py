@@ -1087,7 +1087,11 @@ def strength(trials, model_path, unit_name, units, torque_sign, passive_path, gr
                                                       unit.direction, field="--passive"))
     say = (lambda message: None) if quiet else (lambda message: click.echo(message, err=True))
     started = time.perf_counter()
-    fit = fit_strength(read, unit.parameters, unit.direction, settings, passive, progress=say)
+    try:
+        fit = fit_strength(read, unit.parameters, unit.direction, settings, passive,
+                           progress=say)
+    except ModelError as exc:
+        raise _as_option(exc, {"hold": "--hold"}) from None
     summary = strength_summary(fit, unit=unit.name, model=model_path,
                                trials=[Path(t).name for t in trials], passive=passive,
                                settings=settings, wall_time=time.perf_counter() - started,

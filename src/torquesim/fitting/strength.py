@@ -67,6 +67,11 @@ FITTED_FIELDS = ("isometric_torque", "eccentric_torque_max", "max_velocity", "ve
 ECCENTRIC_FIELDS = ("eccentric_torque_max", "min_differential_activation",
                     "differential_activation_rate", "differential_activation_midpoint")
 CONCENTRIC_FIELDS = ("max_velocity", "velocity_constant")
+ANGLE_FIELDS = ("optimal_angle", "angle_curvature")
+#: The torque–angle parabola (T0, θ_opt, k2) needs torques at 3 or more CE angles at least
+#: this far apart (rad, 5°), or a constant-velocity phase sweeping twice that: a single
+#: isometric trial fitted θ_opt and k2 to its plateau's 1° of CE angle.
+ANGLE_SEPARATION = math.radians(5.0)
 #: The range each fitted parameter is searched in (SI units). The torque ranges are set from
 #: the data (see `_bounds`); the others: ω_max 6–40 rad/s and ω_c 0.5–20 rad/s cover the
 #: published single-joint fits (elbow ≈ 18, knee 17–30 rad/s; King et al. 2006, Forrester
@@ -362,6 +367,13 @@ def _held_by_data(phases: list[Phase]) -> dict[str, str]:
         held.update(dict.fromkeys(ECCENTRIC_FIELDS, "held (no eccentric trial)"))
     if "concentric" not in kinds:
         held.update(dict.fromkeys(CONCENTRIC_FIELDS, "held (no concentric trial)"))
+    sweeps = any(p.kind != "isometric" and np.ptp(p.theta_cc) >= 2 * ANGLE_SEPARATION
+                 for p in phases if p.theta_cc.size)
+    angles = np.sort([float(np.mean(p.theta_cc)) for p in phases
+                      if p.kind == "isometric" and p.theta_cc.size])
+    distinct = 1 + int(np.sum(np.diff(angles) >= ANGLE_SEPARATION)) if angles.size else 0
+    if not sweeps and distinct < 3:
+        held.update(dict.fromkeys(ANGLE_FIELDS, "held (torques at fewer than 3 angles)"))
     return held
 
 
@@ -386,6 +398,11 @@ def fit_strength(trials: list[DynamometerTrial], unit: TorqueGeneratorUnit, dire
     phases = [p for t in trials
               for p in trial_phases(t, direction, stiffness, passive, settings, notes)]
     torque = np.concatenate([p.torque for p in phases])
+    if not torque.size or torque.max() <= 0.0:
+        largest = torque.max() + 0.0 if torque.size else 0.0  # + 0.0: no "-0"
+        raise ModelError("trials", f"no torque in the unit's direction (largest {largest:.3g} "
+                         "N·m); allowed: trials in which the unit pulls (check --torque-sign "
+                         "and --unit)")
     theta_cc = np.concatenate([p.theta_cc for p in phases])
     omega_cc = np.concatenate([p.omega_cc for p in phases])
     start_values = {**{f: getattr(unit, f) for f in PACKED_FIELDS}, "se_stiffness": stiffness}
@@ -393,6 +410,11 @@ def fit_strength(trials: list[DynamometerTrial], unit: TorqueGeneratorUnit, dire
     status = dict(_held_by_data(phases))
     for name, value in settings.hold.items():
         check_range(f"hold.{name}", value, -math.inf, math.inf)
+        try:  # the held value in its field's range (the unit's own check)
+            replace(unit, **{name: float(value)})
+        except ModelError as exc:
+            if exc.field == name:
+                raise ModelError("hold", f"{name}={value:g}: {exc.reason}") from None
         status[name] = "held (given)"
         start_values[name] = float(value)
     free = [f for f in FITTED_FIELDS if f not in status]
