@@ -340,3 +340,17 @@ def test_the_result_figure_draws_unit_torques_with_their_sign():
     other = ts.simulate(model.replace(duration=0.5), "imex", 2.5e-3)
     labels = [line.get_label() for line in plot_comparison(run, other).axes[1].get_lines()]
     assert {"net, start", "net, optimum", "elbow_extensor (−), optimum"} <= set(labels)
+
+
+def test_a_bound_is_written_low_comma_high_or_low_dot_dot_high():
+    """--bound takes LOW..HIGH as --constrain writes a range (before, only LOW,HIGH);
+    '0...1' (0..0.1 or 0...1?) and a reversed range are refused by name."""
+    from torquesim.cli import _parse_assignments
+
+    assert _parse_assignments(("a.b=0,0.5", "c.d=-0.1..0.2", "e.f=0.,1"), "--bound", 2) == \
+        {"a.b": (0.0, 0.5), "c.d": (-0.1, 0.2), "e.f": (0.0, 1.0)}
+    for bad, says in (("a.b=0...1", "LOW..HIGH"), ("a.b=0.5..0.1", "LOW < HIGH"),
+                      ("a.b=1..2..3", "LOW..HIGH"), ("a.b=0.3,0.3", "LOW < HIGH")):
+        with pytest.raises(ts.ModelError, match=says) as info:
+            _parse_assignments((bad,), "--bound", 2)
+        assert info.value.field == "--bound"

@@ -692,17 +692,24 @@ def _parse_pairs(values, option: str, example: str) -> dict[str, str]:
 
 
 def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float, ...]]:
-    """``NAME=V`` (count 1) or ``NAME=LO,HI`` (count 2) options as a dict."""
+    """``NAME=V`` (count 1) or ``NAME=LO,HI`` (count 2; ``LO..HI`` too, as ``--constrain``
+    writes a range) options as a dict."""
     shape, example = (("NAME=VALUE", "flexor.ramp1.delay=0.05") if count == 1
-                      else ("NAME=LOW,HIGH", "flexor.ramp1.delay=0,0.5"))
+                      else ("NAME=LOW,HIGH (or LOW..HIGH)", "flexor.ramp1.delay=0,0.5"))
     out = {}
     for name, text in _parse_pairs(values, option, example).items():
-        try:
-            numbers = tuple(float(v) for v in text.split(","))
+        ranged = count == 2 and ".." in text
+        parts = text.split("..") if ranged else text.split(",")
+        try:  # in LOW..HIGH no number starts or ends with a dot ("0...1": 0..0.1 or 0...1?)
+            numbers = tuple(float(v) for v in parts
+                            if not (ranged and (v.strip().startswith(".")
+                                                or v.strip().endswith("."))))
         except ValueError:
             numbers = ()
-        if len(numbers) != count:
+        if len(numbers) != count or len(parts) != count:
             raise ModelError(option, f"{name}={text!r}: allowed {shape}, e.g. {example}")
+        if count == 2 and not numbers[0] < numbers[1]:
+            raise ModelError(option, f"{name}={text!r}: allowed LOW < HIGH")
         out[name] = numbers
     return out
 
