@@ -436,3 +436,14 @@ def test_constraints_parse_in_their_units_and_rank_infeasible_candidates():
     cost, _, _ = problem.score(problem.x0[None, :])
     assert cost[0] == pytest.approx(INFEASIBLE_COST + violation[0])
     assert start_drift is not None
+
+
+def test_a_goal_both_maximised_and_minimised_is_refused():
+    """--minimise effort --maximise effort ran 60 generations to "no candidate beat the
+    start"; the same goal at another angle, or another goal, is fine."""
+    model = ts.default_model().to_chain()
+    with pytest.raises(ModelError, match="'effort' is maximised too") as info:
+        goals_of(model, maximise=("0.5*effort",), minimise=("effort",))
+    assert info.value.field == "minimise"
+    assert len(goals_of(model, maximise=("speed_at:elbow=60deg",),
+                        minimise=("speed_at:elbow=90deg", "effort"))) == 3

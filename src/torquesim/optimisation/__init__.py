@@ -55,6 +55,14 @@ def goals_of(model, maximise=(), minimise=()) -> tuple[Goal, ...]:
                 raise ModelError("maximise" if sense else "minimise",
                                  f"{item!r}; allowed: a goal name, a Goal or a function "
                                  "of a SimulationResult")
+    senses = {}
+    for goal in out:
+        if goal.name == "custom":
+            continue
+        key = (goal.name, goal.joint, goal.angle)
+        if senses.setdefault(key, goal.maximise) != goal.maximise:
+            raise ModelError("minimise", f"{goal.label!r} is maximised too; "
+                             "allowed: each goal in one sense, maximised or minimised")
     return tuple(out)
 
 
