@@ -258,6 +258,8 @@ def _evenly_picked(size: int, most: int) -> np.ndarray:
     one kept."""
     stride = max(1, math.ceil((size - 1) / (most - 1)))
     return np.unique(np.r_[np.arange(0, size, stride), size - 1])
+
+
 #: A recording whose joints all move slower than this at its first sample starts still, rad/s
 #: (5°/s: 0.5° over the first 0.1 s, within the noise of a motion capture's angles).
 STILL = math.radians(5.0)

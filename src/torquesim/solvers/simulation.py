@@ -103,7 +103,8 @@ def simulate(
     advise : bool
         Fixed-step runs that fail or break the stability limit: find the step to recommend by
         running it (`verified_step`), so the advice holds when followed. Default True;
-        studies that try many steps on purpose turn it off.
+        studies that try many steps on purpose turn it off. (With ``step`` None the search
+        runs regardless: it chooses the step.)
     tolerance : float or None
         Fixed-step runs: estimate the max angle error by Richardson extrapolation against a
         run at twice the step (half a run's work) and, when that exceeds the tolerance,
