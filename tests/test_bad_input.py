@@ -146,7 +146,7 @@ def test_a_huge_run_is_announced_before_it_starts(tmp_path, capsys, monkeypatch)
 # ------------------------------------------------------------------ fit
 
 @pytest.mark.parametrize("extra, field", [
-    (["--bound", "elbow.flexor.ramp1.level=0.2,0.2"], "bounds"),
+    (["--bound", "elbow.flexor.ramp1.level=0.2,0.2"], "--bound"),  # names the option
     (["--step", "1e-9"], "step"),
     (["--freeze", "elbow.flexor.ramp1.delay=0.9", "--bound",
       "elbow.flexor.ramp1.delay=0,0.5"], "freeze"),
