@@ -699,14 +699,14 @@ def _parse_assignments(values, option: str, count: int) -> dict[str, tuple[float
     out = {}
     for name, text in _parse_pairs(values, option, example).items():
         ranged = count == 2 and ".." in text
-        parts = text.split("..") if ranged else text.split(",")
-        try:  # in LOW..HIGH no number starts or ends with a dot ("0...1": 0..0.1 or 0...1?)
-            numbers = tuple(float(v) for v in parts
-                            if not (ranged and (v.strip().startswith(".")
-                                                or v.strip().endswith("."))))
+        parts = [v.strip() for v in (text.split("..") if ranged else text.split(","))]
+        # in LOW..HIGH no number starts or ends with a dot ("0...1": 0..0.1 or 0...1?)
+        ambiguous = ranged and any(v.startswith(".") or v.endswith(".") for v in parts)
+        try:
+            numbers = () if ambiguous else tuple(float(v) for v in parts)
         except ValueError:
             numbers = ()
-        if len(numbers) != count or len(parts) != count:
+        if len(numbers) != count:
             raise ModelError(option, f"{name}={text!r}: allowed {shape}, e.g. {example}")
         if count == 2 and not numbers[0] < numbers[1]:
             raise ModelError(option, f"{name}={text!r}: allowed LOW < HIGH")
@@ -914,11 +914,12 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
             click.echo(line, err=line.startswith("warning"))
     from .io.target_file import manifest_units
 
-    if units is None and Path(target_spec).suffix.lower() in (".csv", ".txt") and \
-            manifest_units(target_spec) is not None:
-        click.echo(f"note: {target_spec}: angles read in {manifest_units(target_spec)}, as "
-                   "the manifest beside it (written by torquesim) says", err=True)
-    elif units is None and Path(target_spec).suffix.lower() in (".csv", ".txt"):
+    table = units is None and Path(target_spec).suffix.lower() in (".csv", ".txt")
+    declared = manifest_units(target_spec) if table else None
+    if declared is not None:
+        click.echo(f"note: {target_spec}: angles read in {declared}, as the manifest beside "
+                   "it (written by torquesim) says", err=True)
+    elif table:
         for joint, angle in zip(target.joints, target.angles, strict=True):
             if np.max(np.abs(np.degrees(angle))) <= math.pi:
                 click.echo(f"warning: every target angle of {joint} is within ±3.2 degrees; "

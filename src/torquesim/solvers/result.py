@@ -151,7 +151,7 @@ class StabilityReport:
     since the body part is explicit in every technique). ``exceeded`` is True when it
     passed the RK4 limit 2.785: the motion is then probably wrong although bounded.
     ``largest_safe_step`` (s) is the step found by running (``verified_step``, see
-    `torquesim.solvers.simulation.verified_step`) when the run failed or broke the limit;
+    `torquesim.solvers.simulation.verified_run`) when the run failed or broke the limit;
     otherwise the estimate 2.785·min τ of this run."""
 
     max_step_ratio: float

@@ -88,7 +88,7 @@ def simulate(
         Fixed step for the RK4 methods, s. Must divide the duration. Default (None): chosen
         from the model (`default_step_run`): 0.1 ms (`default_fixed_step`), or, where a run
         at it breaks the stability limit of the technique's explicit part (stiff units or
-        contacts), the largest step a run verifies (`verified_step`), said in
+        contacts), the largest step a run verifies (`verified_run`), said in
         ``result.settings["step_note"]``.
     duration : float, optional
         Overrides the model's duration, s.
@@ -102,7 +102,7 @@ def simulate(
         ``status == "failed"``.
     advise : bool
         Fixed-step runs that fail or break the stability limit: find the step to recommend by
-        running it (`verified_step`), so the advice holds when followed. Default True;
+        running it (`verified_run`), so the advice holds when followed. Default True;
         studies that try many steps on purpose turn it off. (With ``step`` None the search
         runs regardless: it chooses the step.)
     tolerance : float or None
@@ -137,8 +137,8 @@ def simulate(
         else:
             result = _fixed_step(model, packed, y0, method, step, coupling)
             if advise and (not result.success or result.stability.exceeded):
-                result = _with_advice(result, verified_step(model, packed, y0, method, step,
-                                                            coupling))
+                safe = verified_run(model, packed, y0, method, step, coupling)
+                result = _with_advice(result, None if safe is None else safe.step)
         if tolerance is not None and result.success:
             result = _with_error_estimate(result, model, packed, y0, method, coupling,
                                           tolerance)
@@ -287,12 +287,12 @@ def _max_difference(coarse, fine) -> float:
     return float(np.max(np.abs(coarse.q[:n] - fine.q[::k][:n])))
 
 
-def verified_step(model, packed, y0, method, step, coupling) -> float | None:
-    """The step to recommend after a fixed-step run at ``step`` failed or broke the stability
-    limit, found by running: the largest of step/2, step/4, … (made to divide the duration)
-    whose run succeeds within the stability limit and agrees with a run at half that step to
-    `ADVICE_AGREEMENT` rad. None if no step down to step/2^8 (and no run of at most
-    `ADVICE_MAX_STEPS` steps) does."""
+def verified_run(model, packed, y0, method, step, coupling) -> SimulationResult | None:
+    """The run at the step to recommend after a fixed-step run at ``step`` failed or broke the
+    stability limit, found by running: the largest of step/2, step/4, … (made to divide the
+    duration) whose run succeeds within the stability limit and agrees with a run at half
+    that step to `ADVICE_AGREEMENT` rad. None if no step down to step/2^8 (and no run of at
+    most `ADVICE_MAX_STEPS` steps) does."""
     h = step
     for _ in range(ADVICE_HALVINGS):
         h = divisor_step(model.duration, h / 2)
@@ -303,7 +303,7 @@ def verified_step(model, packed, y0, method, step, coupling) -> float | None:
             continue
         half = _fixed_step(model, packed, y0, method, h / 2, coupling)
         if half.success and _max_difference(trial, half) <= ADVICE_AGREEMENT:
-            return h
+            return trial
     return None
 
 
@@ -319,26 +319,24 @@ def default_fixed_step(duration: float) -> float:
 
 def default_step_run(model, packed, y0, method, coupling) -> SimulationResult:
     """A fixed-step run at the step chosen from the model: `default_fixed_step`; where that
-    run fails or breaks the stability limit of the
-    technique's explicit part (the muscle part of monolithic and partitioned RK4 on stiff
-    units, the contacts of every technique), the run at the largest step `verified_step`
-    finds, with a note saying so in ``settings["step_note"]``. (Where none is found, the
-    run at the first step, whose message then says what to change.)"""
+    run fails or breaks the stability limit of the technique's explicit part (the muscle
+    part of monolithic and partitioned RK4 on stiff units, the contacts of every technique),
+    the run `verified_run` finds, with a note saying so in ``settings["step_note"]``. (Where
+    none is found, the run at the first step, whose message then says what to change.)"""
     step = default_fixed_step(model.duration)
     result = _fixed_step(model, packed, y0, method, step, coupling)
     if result.success and not result.stability.exceeded:
         return result
-    safe = verified_step(model, packed, y0, method, step, coupling)
-    if safe is None:
-        return _with_advice(result, safe)
+    chosen = verified_run(model, packed, y0, method, step, coupling)
+    if chosen is None:
+        return _with_advice(result, None)
     report = result.stability
     where = report.unit if report.in_contact else f"the {report.unit} unit"
-    chosen = _fixed_step(model, packed, y0, method, safe, coupling)
     others = "" if math.isinf(report.limit) or report.in_contact else \
         " (method 'imex', implicit muscles, is stable at larger steps)"
     note = (f"the default step {step * 1e3:.4g} ms is beyond explicit RK4's stability limit "
-            f"in {where} of {model.name}; ran at {safe * 1e3:.4g} ms, the largest step a run "
-            f"verified{others}")
+            f"in {where} of {model.name}; ran at {chosen.step * 1e3:.4g} ms, the largest step "
+            f"a run verified{others}")
     return replace(chosen, settings={**chosen.settings, "step_note": note})
 
 
