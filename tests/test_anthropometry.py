@@ -153,6 +153,9 @@ def test_a_subject_s_jump_runs_and_jumps(tmp_path):
     (["--body-mass", "70", "--height", "1.7", "--age", "12"],
      "--age: 12 is out of range; allowed [18, 100] years"),
     (["--age", "30"], "--body-mass: required"),
+    # a value given is judged before the one missing (it asked for --height first)
+    (["--body-mass", "0"], "--body-mass: 0 is out of range; allowed [20, 250] kg"),
+    (["--age", "5"], "--age: 5 is out of range; allowed [18, 100] years"),
 ])
 def test_bad_subjects_are_one_line_errors(options, message, tmp_path, capsys):
     assert main(["model", "squat-jump", *options, "--out", str(tmp_path / "x.toml")]) == 2

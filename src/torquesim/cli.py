@@ -490,15 +490,17 @@ def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, a
         raise ModelError(option, f"{name!r} is a model file; allowed: a built-in model "
                          f"({', '.join(PRESETS)}), whose segments are de Leva's")
     options = {"body_mass": "--body-mass", "height": "--height", "age": "--age"}
+    if personal or measurements is not None:
+        from .model.anthropometry import check_subject_value
+
+        given = {"body_mass": body_mass, "height": height, "age": age}
+        for field, value in given.items():  # each value given is checked before what is missing
+            if value is not None:
+                check_subject_value(field, value, options[field])
     if measurements is not None:
-        from .errors import check_range
         from .model.anthropometry import for_measured
         from .model.yeadon_body import read_measurements
 
-        if body_mass is not None:
-            check_range("--body-mass", body_mass, 20.0, 250.0, unit="kg")
-        if age is not None:
-            check_range("--age", age, 18.0, 100.0, unit="years")
         body = read_measurements(measurements, body_mass, densities)
         for said in body.warnings:
             click.echo(f"note: yeadon: {said}", err=True)

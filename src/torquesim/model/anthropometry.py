@@ -103,6 +103,18 @@ PRESET_PARTS = {
 REMAINDER = "head_arms_trunk"
 
 
+#: The bounds of a subject's measures: (low, high, unit), checked by `check_subject_value`.
+SUBJECT_BOUNDS = {"body_mass": (20.0, 250.0, "kg"), "height": (1.0, 2.5, "m"),
+                  "age": (18.0, 100.0, "years")}
+
+
+def check_subject_value(field: str, value: float, name: str | None = None) -> None:
+    """Refuse a subject's ``field`` (a key of `SUBJECT_BOUNDS`) outside its bounds, naming it
+    ``name`` (default the field; the CLI gives its option)."""
+    low, high, unit = SUBJECT_BOUNDS[field]
+    check_range(name or field, value, low, high, unit=unit)
+
+
 @dataclass(frozen=True)
 class Subject:
     """A person a model is made for.
@@ -126,12 +138,12 @@ class Subject:
     age: float | None = None
 
     def __post_init__(self) -> None:
-        check_range("body_mass", self.body_mass, 20.0, 250.0, unit="kg")
-        check_range("height", self.height, 1.0, 2.5, unit="m")
+        check_subject_value("body_mass", self.body_mass)
+        check_subject_value("height", self.height)
         if self.sex not in SEXES:
             raise ModelError("sex", f"{self.sex!r}; allowed: {', '.join(SEXES)}")
         if self.age is not None:
-            check_range("age", self.age, 18.0, 100.0, unit="years")
+            check_subject_value("age", self.age)
 
 
 REFERENCE = Subject(REFERENCE_MASS, REFERENCE_HEIGHT, REFERENCE_SEX)
