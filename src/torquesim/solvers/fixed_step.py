@@ -651,7 +651,7 @@ def model_step_kinds(model, monolithic: bool, exchange) -> StepKinds:
 
 def kind_on(kinds, name: str) -> bool:
     """Whether kind ``name`` of ``kinds`` (`StepKinds`) is on: read off the value (Python
-    callers) or off its Numba type while compiling (`_run_chosen_compiled`)."""
+    callers) or off its Numba type while compiling (`_run_step_loop_compiled`)."""
     if isinstance(kinds, types.BaseNamedTuple):
         return not isinstance(kinds.types[kinds.fields.index(name)], types.NoneType)
     return getattr(kinds, name) is not None
@@ -660,7 +660,7 @@ def kind_on(kinds, name: str) -> bool:
 def _chosen_loop(kinds):
     """The call of the step loop the kinds choose, with the body's kinds and the units'
     switches as its arguments (`kind_on`): the same function runs from Python (calling the
-    chosen loop's dispatcher) and is compiled for compiled callers (`_run_chosen_compiled`).
+    chosen loop's dispatcher) and is compiled for compiled callers (`_run_step_loop_compiled`).
     The loop gets the kinds typed bool or None as a Python True is (a literal True would
     compile a second copy of the loop for compiled callers, measured: the jump's IMEX loop
     compiled twice, 11–18 s each)."""
@@ -675,32 +675,27 @@ def _chosen_loop(kinds):
     return partitioned
 
 
-def _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """Run the loop the kinds choose, from Python (`_chosen_loop`)."""
-    _chosen_loop(kinds)(kinds, system, y0, h, n_steps, coupling, out, stats)
-
-
-@overload(_run_chosen, inline="always")
-def _run_chosen_compiled(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """`_run_chosen` for compiled callers: the loop chosen by the kinds' Numba types while
-    compiling, so that only the chosen loop is typed and compiled."""
-    return _chosen_loop(kinds)
-
-
-@njit(cache=True, error_model="numpy")
 def run_step_loop(kinds, system, y0, h, n_steps, coupling, out, stats):
     """Run the step loop of the kinds ``kinds`` (`StepKinds`) on the packed model ``system``
     = (segments, joints, units, profiles) (`PackedChain`): `rk4_monolithic` or
     `rk4_partitioned` under the packed ``coupling``, for one segment or a chain, and in the
     partitioned loop its muscle solver; y0 the initial state, h the step (s), ``out``
     (n_steps + 1 rows of y) and ``stats`` (`new_stats`) filled. Only the chosen code is
-    compiled. (A dispatcher passed as an argument would choose as well, but Numba's disk
-    cache misses such compilations in every new process; an integer made literal compiles
-    every branch once before it specialises.) Compiled callers (the population kernel) call
-    it compiled; Python callers run its Python code (``run_step_loop.py_func``), which calls
-    the chosen loop's dispatcher directly, so that the wrapper is not compiled around it
-    (`torquesim.solvers.simulation`)."""
-    _run_chosen(kinds, system, y0, h, n_steps, coupling, out, stats)
+    compiled. From Python the kinds choose in Python (`_chosen_loop`), which calls the chosen
+    loop's dispatcher; compiled callers (the population kernel) get the chosen loop's call
+    inlined (`_run_step_loop_compiled`), so that no wrapper is compiled around it: each
+    compiled layer links and optimises the loop again (0.6–0.8 s of a cold first fit per
+    layer). (A dispatcher passed as an argument would choose as well, but Numba's disk cache
+    misses such compilations in every new process; an integer made literal compiles every
+    branch once before it specialises.)"""
+    _chosen_loop(kinds)(kinds, system, y0, h, n_steps, coupling, out, stats)
+
+
+@overload(run_step_loop, inline="always")
+def _run_step_loop_compiled(kinds, system, y0, h, n_steps, coupling, out, stats):
+    """`run_step_loop` for compiled callers: the loop chosen by the kinds' Numba types while
+    compiling, so that only the chosen loop is typed and compiled."""
+    return _chosen_loop(kinds)
 
 
 def new_stats() -> np.ndarray:

@@ -179,9 +179,7 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
     else:
         label, exchange = method, np.zeros(fs.COUPLING_SIZE)  # unused
     kinds = fs.model_step_kinds(model, not partitioned, exchange)
-    # From Python the kinds choose in Python (run_step_loop's own code, not compiled): only
-    # the chosen loop is compiled, not also the wrapper around it (0.6 s of a cold start).
-    run = fs.run_step_loop.py_func
+    run = fs.run_step_loop  # (from Python: only the chosen loop is compiled)
     # A zero-step call compiles the loop (or loads it from the disk cache) outside the timing.
     run(kinds, tuple(packed), y0, float(step), 0, exchange, out, fs.new_stats())
     start = _time.perf_counter()
