@@ -100,22 +100,23 @@ OK, NON_FINITE, DIVERGED = 0, 1, 2
 #: reaches 1, `tableaus.RK4.real_stability_limit`; tests/test_tableaus.py checks the two).
 RK4_STABILITY_LIMIT = 2.785293563405282
 
-#: Diagonal coefficient γ = 1 − 1/√2 of the L-stable two-stage SDIRK method of order 2
-#: (`tableaus.SDIRK2`; its a_21 = 1 − γ, its b the last row of A).
-SDIRK_GAMMA = tableaus.SDIRK2.a[0][0]
-
 #: Stage times of classical RK4 as fractions of the step (`tableaus.RK4`; a_{s,s−1} = c_s,
 #: every other entry of A zero): an array, which Numba freezes into the compiled loops as a
 #: constant (a tuple indexed by the stage made the partitioned elbow step 3–4 % slower,
 #: min of 8 interleaved rounds).
 _RK4_C = np.array(tableaus.RK4.c)
+#: The muscle part's two solvers as their tableaus (A, b, c), arrays frozen into the
+#: compiled loop (`_muscle_part`): explicit RK4 and the L-stable SDIRK2 of the IMEX technique.
+_RK4_A, _RK4_B = np.array(tableaus.RK4.a), np.array(tableaus.RK4.b)
+_SDIRK2_A, _SDIRK2_B, _SDIRK2_C = (np.array(tableaus.SDIRK2.a), np.array(tableaus.SDIRK2.b),
+                                   np.array(tableaus.SDIRK2.c))
 
 
-# Classical RK4 (`tableaus.RK4`), written once: every stage starts from y plus c_s·h times
-# the previous stage's derivative, and the step adds h·Σ b_s·k_s. Every RK4 in this module
-# (monolithic, the body part, the muscle part) takes its stage offsets and its combination
-# from these two inlined functions over scalars (measured: no slower than the loops written
-# out).
+# Classical RK4 (`tableaus.RK4`) on the whole state and on the body part, written once: every
+# stage starts from y plus c_s·h times the previous stage's derivative, and the step adds
+# h·Σ b_s·k_s. The monolithic loop and the body part take their stage offsets and their
+# combination from these two inlined functions over scalars (measured: no slower than the
+# loops written out); the muscle part runs its solver's tableau (`_muscle_part`).
 @njit(cache=True, error_model="numpy", inline="always")
 def rk4_stage_offset(s, h):
     """c_s·h: stage ``s``'s time after the step start, and the multiple of the previous
@@ -129,9 +130,9 @@ def rk4_increment(k1, k2, k3, k4, h):
     h/6·(k1 + 2·(k2 + k3) + k4) (tests/test_tableaus.py holds it to the tableau's b)."""
     return h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
 #: Rows of the scratch array of the partitioned loop (each row as long as the state).
-(_K1, _K2, _K3, _K4, _STAGE, _W1, _W2, _W3, _W4, _TAU, _Q, _TORQUE, _TORQUE0,
- _TORQUE_SLOPE, _Q_SLOPE, _RATE, _OMEGA, _OLD, _MUSCLE_STAGE) = range(19)
-_SCRATCH_ROWS = 19
+(_K1, _K2, _K3, _K4, _STAGE, _Q, _TORQUE, _TORQUE0, _TORQUE_SLOPE, _Q_SLOPE, _RATE, _OMEGA,
+ _OLD, _MUSCLE_STAGE, _W) = range(15)
+_SCRATCH_ROWS = 15
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -343,117 +344,104 @@ def _body_rk4(body_arrays, t, y, h, b, y_new, stats, body):
 
 
 @njit(cache=True, error_model="numpy")
-def _muscle_rk4(muscles, t, y, h, substeps, b, y_new, dynamics):
-    """``substeps`` RK4 steps of the muscle part (the units' states y[2n:]) over [t, t + h]
-    with joint angles q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]); the activation profiles
-    are evaluated at every stage time. Result into y_new[2n:]. ``muscles`` = (n, number of
-    units, profile row width, flat units, flat profiles).
+def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, implicit):
+    """``substeps`` steps of the muscle part (the units' states y[2n:]) over [t, t + h] by a
+    diagonally implicit Runge-Kutta method, its tableau (A, b, c) as data (`tableaus`): the
+    explicit classical RK4 (``implicit`` None) or the L-stable SDIRK2 of the IMEX technique
+    (``explicit`` None), the module's constant arrays (arguments would be reference-counted
+    at every call). ``explicit`` and ``implicit`` (True or None) say whether the tableau has
+    explicit and implicit stages: the code of a kind of stage it has not is not compiled (a
+    cold IMEX run compiled 1.3 s more with the explicit stage's root finder in it). With the
+    joint angles
+    q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]) and the activation profiles evaluated at
+    every stage time. Result into y_new[2n:]. ``muscles`` = (n, number of units, profile row
+    width, flat units, flat profiles).
 
-    The units' rates and CE velocities at (t, q_n, y) (b[_RATE], b[_OMEGA]) were evaluated
-    by the caller: they are the first stage of the first sub-step. Makes 4·substeps − 1
-    muscle evaluations. The stage rows b[_K1…_K4] and b[_MUSCLE_STAGE] are indexed as y, the
-    CE velocities b[_W1…_W4] by unit.
+    A stage with a_ss = 0 evaluates the units' rates (`unit_rates`); one with a_ss > 0 solves
+    each unit's stage equation for its CE velocity (`unit_implicit_ce_velocity`; with
+    activation dynamics the stage activation first, in closed form by `implicit_activation`:
+    it does not depend on θ_cc), which leaves the muscle part no step-size stability limit.
+    The units are independent given q(s). Each stage's CE velocity of a unit (b[_W]) seeds its
+    next stage's root finder; the first is b[_OMEGA], the CE velocities at the step start. A
+    first stage that is explicit at the step start takes the rates the caller evaluated there
+    (b[_RATE]). Stage rates go into the rows b[_K1…] and stage states into b[_MUSCLE_STAGE]
+    (indexed as y).
+
+    Returns the work: explicit stage evaluations of the muscle part (RK4: 4·substeps − 1),
+    implicit stage equations solved and their residual evaluations (`NFEV_MUSCLE`,
+    `IMPLICIT_SOLVES`, `NEWTON_ITERATIONS`).
     """
     n, nu, width, units, profiles = muscles
+    if implicit is None:
+        a, weights, c = _RK4_A, _RK4_B, _RK4_C
+    else:
+        a, weights, c = _SDIRK2_A, _SDIRK2_B, _SDIRK2_C
+    stages = weights.shape[0]
     hs = h / substeps
-    c = unit_states_start(n)
+    first = unit_states_start(n)
     size = y.shape[0]
     stage = b[_MUSCLE_STAGE]
-    for i in range(c, size):
+    given = a[0, 0] == 0.0  # the first stage is the caller's rates at the step start
+    solves = 0
+    explicit_stages = 0
+    for i in range(first, size):
         y_new[i] = y[i]
     for u in range(nu):
-        b[_W4, u] = b[_OMEGA, u]  # the previous sub-step's last stage seeds the next first
+        b[_W, u] = b[_OMEGA, u]
     for sub in range(substeps):
-        s0 = sub * hs
-        for s in range(4):
-            if s == 0 and sub == 0:
-                for i in range(c, size):
+        for s in range(stages):
+            if s == 0 and sub == 0 and given:
+                for i in range(first, size):
                     b[_K1, i] = b[_RATE, i]
-                for u in range(nu):
-                    b[_W1, u] = b[_OMEGA, u]
                 continue
-            lag = rk4_stage_offset(s, hs)  # stage time − sub-step start
-            for i in range(c, size):
-                stage[i] = y_new[i] + lag * b[_K1 + s - 1, i] if s > 0 else y_new[i]
+            at = sub * hs + c[s] * hs  # the stage time after t
+            for i in range(first, size):  # y + h·Σ_{r<s} a_sr·k_r
+                stage[i] = y_new[i]
+            for r in range(s):
+                coefficient = a[s, r] * hs
+                if coefficient != 0.0:
+                    for i in range(first, size):
+                        stage[i] += coefficient * b[_K1 + r, i]
+            gh = a[s, s] * hs
+            if gh == 0.0:
+                explicit_stages += 1
             for u in range(nu):
                 j, j2 = unit_joints(units, u)
                 i = unit_state(n, units, u)
-                guess = b[_W4, u] if s == 0 else b[_W1 + s - 1, u]
-                psi = unit_angle(y[j] + b[_Q_SLOPE, j] / h * (s0 + lag),
-                                 y[j2] + b[_Q_SLOPE, j2] / h * (s0 + lag), units, u)
-                b[_K1 + s, i], level_rate, b[_W1 + s, u], b[_TAU, u] = unit_rates(
-                    psi, stage, i,
-                    unit_excitation(t + s0 + lag, profiles, width, u), guess, units, u,
-                    dynamics)
-                if dynamics is not None:
-                    if has_activation_state(units, u):
-                        b[_K1 + s, i + 1] = level_rate
-        for i in range(c, size):
-            y_new[i] += rk4_increment(b[_K1, i], b[_K2, i], b[_K3, i], b[_K4, i], hs)
-
-
-@njit(cache=True, error_model="numpy")
-def _muscle_sdirk2(muscles, t, y, h, substeps, b, stats, y_new, dynamics):
-    """``substeps`` steps of the muscle part (the units' states y[2n:]) over [t, t + h] by
-    the L-stable two-stage SDIRK method of order 2 (γ = 1 − 1/√2; stages at t + γh and t + h;
-    stiffly accurate), each unit's stage equation solved by
-    `unit_implicit_ce_velocity` (and, with activation dynamics, its activation's
-    stage equation first, in closed form by `implicit_activation`: the activation does not
-    depend on θ_cc). Joint angles q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]). With this the
-    muscle part has no step-size stability limit. Result into y_new[2n:].
-
-    The explicit CE velocities at the step start (b[_OMEGA]) seed Newton's method. Each unit
-    residual evaluation is counted in ``stats[NEWTON_ITERATIONS]``, each stage equation in
-    ``stats[IMPLICIT_SOLVES]``. The units are independent given
-    q(s), so each is advanced over the whole step in turn. ``muscles`` as for `_muscle_rk4`.
-    """
-    n, nu, width, units, profiles = muscles
-    hs = h / substeps
-    gh = SDIRK_GAMMA * hs
-    solves = 0
-    for u in range(nu):
-        o = u * UNIT_ROW_SIZE
-        j, j2 = unit_joints(units, u)
-        d = units[o + UNIT_DIRECTION]
-        dynamic = False
-        if dynamics is not None:
-            dynamic = has_activation_state(units, u)
-        rate = b[_Q_SLOPE, j] / h
-        rate2 = b[_Q_SLOPE, j2] / h
-        i = unit_state(n, units, u)
-        x = y[i]
-        a = y[i + 1] if dynamic else 0.0
-        guess = b[_OMEGA, u]
-        for sub in range(substeps):
-            s = sub * hs
-            known = x  # stage s: θ_cc = θ_cc,n + Σ_{r<s} a_sr·h·(dθ_cc/dt)_r + γh·(dθ_cc/dt)_s
-            known_a = a
-            w = guess
-            level_rate = 0.0
-            for stage in range(2):
-                if stage == 1:
-                    known = x + d * ((hs - gh) * w)  # a_21·h = (1 − γ)h
-                    known_a = a + (hs - gh) * level_rate
-                at = s + (gh if stage == 0 else hs)  # c·h: γh, then h
-                q = unit_angle(y[j] + rate * at, y[j2] + rate2 * at, units, u)
+                psi = unit_angle(y[j] + b[_Q_SLOPE, j] / h * at,
+                                 y[j2] + b[_Q_SLOPE, j2] / h * at, units, u)
                 level = unit_excitation(t + at, profiles, width, u)
-                if dynamic:  # the stage activation, then its rate
-                    stage_a = implicit_activation(known_a, level, gh,
-                                                  units[o + UNIT_ACTIVATION_TIME],
-                                                  units[o + UNIT_DEACTIVATION_TIME])
-                    level_rate = (stage_a - known_a) / gh
-                    level = stage_a
-                w, count = unit_implicit_ce_velocity(d * (known - q), known, d, gh, level,
-                                                     units, w, o)
-                solves += count
-            x = known + d * (gh * w)  # stiffly accurate: b = the last row of A
-            a = known_a + gh * level_rate
-            guess = w
-        y_new[i] = x
-        if dynamic:
-            y_new[i + 1] = a
-    stats[NEWTON_ITERATIONS] += solves
-    stats[IMPLICIT_SOLVES] += 2 * substeps * nu
+                dynamic = False
+                if dynamics is not None:
+                    dynamic = has_activation_state(units, u)
+                if explicit is not None:
+                    if gh == 0.0:
+                        b[_K1 + s, i], level_rate, b[_W, u], _ = unit_rates(
+                            psi, stage, i, level, b[_W, u], units, u, dynamics)
+                        if dynamic:
+                            b[_K1 + s, i + 1] = level_rate
+                        continue
+                if implicit is not None:  # (the tableau is SDIRK2's: every stage implicit)
+                    o = u * UNIT_ROW_SIZE
+                    if dynamic:  # the stage activation, then its rate
+                        stage_a = implicit_activation(stage[i + 1], level, gh,
+                                                      units[o + UNIT_ACTIVATION_TIME],
+                                                      units[o + UNIT_DEACTIVATION_TIME])
+                        b[_K1 + s, i + 1] = (stage_a - stage[i + 1]) / gh
+                        level = stage_a
+                    d = units[o + UNIT_DIRECTION]
+                    w, count = unit_implicit_ce_velocity(d * (stage[i] - psi), stage[i], d, gh,
+                                                         level, units, b[_W, u], o)
+                    solves += count
+                    b[_W, u] = w
+                    b[_K1 + s, i] = d * w
+        for i in range(first, size):
+            increment = 0.0
+            for s in range(stages):
+                increment += weights[s] * b[_K1 + s, i]
+            y_new[i] += hs * increment
+    return (explicit_stages, (stages * substeps - explicit_stages - (1 if given else 0)) * nu,
+            solves)
 
 
 @njit(cache=True, error_model="numpy")
@@ -467,9 +455,9 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
     Within a step each exchanged signal is affine in time: its step-start value plus a slope
     that is zero (hold), the previous step's change (linear extrapolation) or, once the other
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
-    ``body`` and ``dynamics``: as for `rk4_monolithic`; the muscle solver is SDIRK2
-    (``implicit_muscles`` True) or RK4 (None), which must be the packed ``coupling``'s, and
-    Numba compiles only that one (`_muscle_step`). (The every-stage exchange is monolithic RK4:
+    ``body`` and ``dynamics``: as for `rk4_monolithic`. The muscle part is advanced by its
+    solver's tableau (`_muscle_part`): SDIRK2 (``implicit_muscles`` True) or RK4 (None),
+    which must be the packed ``coupling``'s. (The every-stage exchange is monolithic RK4:
     `run_step_loop` runs it in `rk4_monolithic`.)
     """
     seg = system[0]
@@ -477,6 +465,7 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
     if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (implicit_muscles is not None) or \
             int(coupling[ORDER]) == EVERY_STAGE:
         raise ValueError("the coupling array and the step loop's kinds disagree")
+    explicit_muscles = _other_switch(implicit_muscles)
     order = int(coupling[ORDER])
     predictor = int(coupling[PREDICTOR])
     substeps = int(coupling[MUSCLE_SUBSTEPS])
@@ -531,8 +520,8 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
             for i in range(size):
                 b[_OLD, i] = y1[i]
             if order == MUSCLES_FIRST:
-                _muscle_step(muscles, t, y, h, substeps, b, stats, y1, implicit_muscles,
-                             dynamics)
+                _advance_muscles(muscles, t, y, h, substeps, b, stats, y1, dynamics,
+                                 explicit_muscles, implicit_muscles)
                 for j in range(n):
                     b[_Q, j] = y[j] + b[_Q_SLOPE, j]
                 joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
@@ -544,8 +533,8 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
                 if order == BODY_FIRST:
                     for j in range(n):
                         b[_Q_SLOPE, j] = y1[j] - y[j]
-                _muscle_step(muscles, t, y, h, substeps, b, stats, y1, implicit_muscles,
-                             dynamics)
+                _advance_muscles(muscles, t, y, h, substeps, b, stats, y1, dynamics,
+                                 explicit_muscles, implicit_muscles)
             stats[NFEV_BODY] += 4
             stats[SWEEPS] += 1
             # Later sweeps see the other part's end-of-step values (waveform relaxation).
@@ -587,27 +576,29 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
             return
 
 
-def _muscle_step(muscles, t, y, h, substeps, b, stats, y_new, implicit, dynamics):
-    """Advance the muscle part over one body step with implicit SDIRK2 (`_muscle_sdirk2`,
-    ``implicit`` True) or explicit RK4 (`_muscle_rk4`, None); see `_muscle_step_of`."""
+@njit(cache=True, error_model="numpy", inline="always")
+def _advance_muscles(muscles, t, y, h, substeps, b, stats, y_new, dynamics, explicit,
+                     implicit):
+    """`_muscle_part`, its work counted into ``stats``."""
+    evaluations, solves, iterations = _muscle_part(muscles, t, y, h, substeps, b, y_new,
+                                                   dynamics, explicit, implicit)
+    stats[NFEV_MUSCLE] += evaluations
+    stats[IMPLICIT_SOLVES] += solves
+    stats[NEWTON_ITERATIONS] += iterations
 
 
-@overload(_muscle_step, jit_options={"error_model": "numpy"})
-def _muscle_step_of(muscles, t, y, h, substeps, b, stats, y_new, implicit, dynamics):
-    """`_muscle_step` choosing its solver by the type of ``implicit`` while compiling, so
-    that a loop compiles only its own muscle solver (a None switch drops the code behind
-    ``if switch is not None``, but a bool switch does not drop an ``else``). Compiled, not
-    inlined: Numba types an inlined overload's implementation again at every pass of type
-    inference (measured: the elbow's IMEX loop compiled 5 % slower inlined)."""
-    if not isinstance(implicit, types.NoneType):
-        def sdirk2(muscles, t, y, h, substeps, b, stats, y_new, implicit, dynamics):
-            _muscle_sdirk2(muscles, t, y, h, substeps, b, stats, y_new, dynamics)
-        return sdirk2
+def _other_switch(switch):
+    """True for a None switch, None for a True one (`_other_switch_of`)."""
+    return True if switch is None else None
 
-    def rk4(muscles, t, y, h, substeps, b, stats, y_new, implicit, dynamics):
-        stats[NFEV_MUSCLE] += 4 * substeps - 1
-        _muscle_rk4(muscles, t, y, h, substeps, b, y_new, dynamics)
-    return rk4
+
+@overload(_other_switch, jit_options={"error_model": "numpy"})
+def _other_switch_of(switch):
+    """`_other_switch` decided by the switch's Numba type while compiling, so that the result
+    is a switch that prunes (typed None or bool, `check_body`)."""
+    if isinstance(switch, types.NoneType):
+        return lambda switch: True
+    return lambda switch: None
 
 
 class StepKinds(NamedTuple):
@@ -625,7 +616,7 @@ class StepKinds(NamedTuple):
     #: Some unit has an activation state (`check_unit_kinds`): True or None.
     dynamics: bool | None
     #: The partitioned loop's muscle part by SDIRK2 (IMEX), else by RK4 (None; None in the
-    #: monolithic loop).
+    #: monolithic loop): each compiles only its kind of stage (`_muscle_part`).
     implicit_muscles: bool | None
 
 
