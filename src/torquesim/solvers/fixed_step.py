@@ -351,11 +351,10 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
     (``explicit`` None), the module's constant arrays (arguments would be reference-counted
     at every call). ``explicit`` and ``implicit`` (True or None) say whether the tableau has
     explicit and implicit stages: the code of a kind of stage it has not is not compiled (a
-    cold IMEX run compiled 1.3 s more with the explicit stage's root finder in it). With the
-    joint angles
-    q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]) and the activation profiles evaluated at
-    every stage time. Result into y_new[2n:]. ``muscles`` = (n, number of units, profile row
-    width, flat units, flat profiles).
+    cold IMEX run compiled 1.3 s more with the explicit stage's root finder in it). The joint
+    angles are q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]), the activation profiles are
+    evaluated at every stage time. Result into y_new[2n:]. ``muscles`` = (n, number of units,
+    profile row width, flat units, flat profiles).
 
     A stage with a_ss = 0 evaluates the units' rates (`unit_rates`); one with a_ss > 0 solves
     each unit's stage equation for its CE velocity (`unit_implicit_ce_velocity`; with
