@@ -519,8 +519,8 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
             for i in range(size):
                 b[_OLD, i] = y1[i]
             if order == MUSCLES_FIRST:
-                _advance_muscles(muscles, t, y, h, substeps, b, stats, y1, dynamics,
-                                 explicit_muscles, implicit_muscles)
+                _count_muscle_work(stats, _muscle_part(muscles, t, y, h, substeps, b, y1, dynamics,
+                                                     explicit_muscles, implicit_muscles))
                 for j in range(n):
                     b[_Q, j] = y[j] + b[_Q_SLOPE, j]
                 joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
@@ -532,8 +532,8 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
                 if order == BODY_FIRST:
                     for j in range(n):
                         b[_Q_SLOPE, j] = y1[j] - y[j]
-                _advance_muscles(muscles, t, y, h, substeps, b, stats, y1, dynamics,
-                                 explicit_muscles, implicit_muscles)
+                _count_muscle_work(stats, _muscle_part(muscles, t, y, h, substeps, b, y1, dynamics,
+                                                     explicit_muscles, implicit_muscles))
             stats[NFEV_BODY] += 4
             stats[SWEEPS] += 1
             # Later sweeps see the other part's end-of-step values (waveform relaxation).
@@ -576,14 +576,12 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _advance_muscles(muscles, t, y, h, substeps, b, stats, y_new, dynamics, explicit,
-                     implicit):
-    """`_muscle_part`, its work counted into ``stats``."""
-    evaluations, solves, iterations = _muscle_part(muscles, t, y, h, substeps, b, y_new,
-                                                   dynamics, explicit, implicit)
-    stats[NFEV_MUSCLE] += evaluations
-    stats[IMPLICIT_SOLVES] += solves
-    stats[NEWTON_ITERATIONS] += iterations
+def _count_muscle_work(stats, work):
+    """Add `_muscle_part`'s work (explicit evaluations, implicit solves, Newton iterations)
+    to ``stats``."""
+    stats[NFEV_MUSCLE] += work[0]
+    stats[IMPLICIT_SOLVES] += work[1]
+    stats[NEWTON_ITERATIONS] += work[2]
 
 
 def _other_switch(switch):
