@@ -53,7 +53,8 @@ def test_the_registry_is_consistent():
             assert t.coupling.label() == t.name  # the name a run reports is the registry's
             assert coupling_order(t.coupling) == t.order
         assert nominal_order(t.method, t.coupling) == t.order
-        assert (t.implicit == "muscles") == bool(t.coupling and t.coupling.implicit_muscles)
+        assert t.implicit.startswith("muscles") == bool(t.coupling and t.coupling.implicit_muscles)
+        assert ("contacts" in t.implicit) == bool(t.coupling and t.coupling.implicit_body)
     assert set(FIT_METHODS) <= set(METHODS)
     assert {"monolithic", "partitioned", "imex"} <= {t.name for t in study_techniques()}
 

@@ -131,8 +131,9 @@ def cli(context):
               default="monolithic", show_default=True,
               help="monolithic: one RK4 on all equations; partitioned: each part its own RK4, "
                    "zero-order hold exchange; imex: body explicit RK4, muscles implicit "
-                   "(L-stable SDIRK2), stable at large steps; reference: SciPy Radau, "
-                   "rtol 1e-10.")
+                   "(L-stable SDIRK2), stable at large steps; imex-ros2: imex with the "
+                   "body's end stops and ground contacts implicit too (ROS2), no step "
+                   "limit from the contacts; reference: SciPy Radau, rtol 1e-10.")
 @click.option("--step", type=TIME, default=None,
               help="Fixed step of the RK4 methods (s; suffixes ms/us accepted). Must divide "
                    "the duration. Default: 0.1 ms (else the largest step below it that "

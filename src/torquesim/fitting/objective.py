@@ -18,8 +18,8 @@ joint j with weight w_j (weights sum to 1) and target sample k = 1…K,
 so that ‖r‖² = Σ_j w_j·MSE_j + w_ω²·(velocity MSE) + w_end²·(end errors²) + w_a·Σ_u mean_k
 (a_u − rest_u)₊² + Σ_c s_c²·MSE_c. With every weight 0 and one joint, ‖r‖ is the RMS angle
 error. The score is ‖r‖ (degrees). A run that goes non-finite, diverges, exceeds the RK4
-stability limit anywhere in a ground contact (explicit in every technique) or, with explicit
-muscle solvers, in a unit fails: its residuals are all FAILED_SCORE/√R, score
+stability limit anywhere in a ground contact (unless the body part is implicit, ROS2) or, with
+explicit muscle solvers, in a unit fails: its residuals are all FAILED_SCORE/√R, score
 `FAILED_SCORE`, so it can never win.
 """
 
@@ -71,17 +71,18 @@ RUN_REASONS = ("", "non-finite state", "diverged", "step beyond explicit RK4's s
 
 
 @njit(cache=True, error_model="numpy")
-def run_status(stats, explicit_muscles):
+def run_status(stats, explicit_muscles, coupling):
     """RUN_OK, or the first reason the run with these loop ``stats`` is unusable:
     non-finite, diverged, a unit beyond the RK4 stability limit (only when the muscles are
-    explicit), a ground contact beyond it (explicit in every technique)."""
+    explicit), a ground contact beyond it (unless the packed ``coupling`` puts the body part
+    on ROS2, implicit in the contacts)."""
     if stats[fs.STATUS] == fs.NON_FINITE:
         return RUN_NON_FINITE
     if stats[fs.STATUS] != fs.OK:
         return RUN_DIVERGED
     if explicit_muscles and stats[fs.WORST_RATIO] > fs.RK4_STABILITY_LIMIT:
         return RUN_UNSTABLE_MUSCLE
-    if stats[fs.CONTACT_RATIO] > fs.RK4_STABILITY_LIMIT:
+    if coupling[fs.BODY_SOLVER] != fs.ROS2 and stats[fs.CONTACT_RATIO] > fs.RK4_STABILITY_LIMIT:
         return RUN_UNSTABLE_CONTACT
     return RUN_OK
 
@@ -140,7 +141,7 @@ def simulate_population(first, count, population, levels, kinds, system, run, gr
         for u in range(levels.shape[0]):
             for k in range(activations.shape[2]):
                 activations[j, u, k] = unit_excitation(k * step, flat, PROFILE_SIZE, u)
-        status[j] = run_status(stats, explicit_muscles)
+        status[j] = run_status(stats, explicit_muscles, coupling)
         if ground_steps.shape[0] > 0 and status[j] == RUN_OK:
             _ground_outputs_of_run(states[j], ground_steps, n, seg_j, joints_j.ravel(),
                                    outputs[j], ground)

@@ -22,12 +22,11 @@ from numba import njit
 from ..errors import ModelError, check_range
 from .contact import (
     CONTACT_DISTANCE,
-    CONTACT_FRICTION,
     CONTACT_OFFSET,
     CONTACT_SEGMENT,
-    CONTACT_SLIP_SPEED,
     contact_force,
     contact_stiffness,
+    friction_damping,
 )
 
 # Layout of a packed end-stop array: the first columns of a chain joint's row
@@ -136,6 +135,13 @@ def passive_energy(theta, b, o=0):
     s = b[o + ENDSTOP_SCALE]
     return b[o + ENDSTOP_TORQUE] * s * (math.exp((b[o + ENDSTOP_LOW] - theta) / s)
                                     + math.exp((theta - b[o + ENDSTOP_HIGH]) / s))
+
+
+@njit(cache=True, error_model="numpy")
+def passive_stiffness(theta, b, o=0):
+    """dT_p/dθ = −V_p(θ)/s_p², N·m/rad (≤ 0: the end stops push back; `passive_torque`)."""
+    s = b[o + ENDSTOP_SCALE]
+    return -passive_energy(theta, b, o) / (s * s)
 
 
 #: Column of a packed joint row holding the angle offset added to q_k in φ_k (the chain's
@@ -502,12 +508,10 @@ def contact_time_constant(y, n, seg, work):
             damping += w * damper
             stiffness += w * spring
             own = max(w * damper, math.sqrt(w * spring))
-        mu = seg[row, CONTACT_FRICTION]
-        if normal > 0.0 and mu > 0.0:
-            ratio = min(abs(tangential) / (mu * normal), 1.0)
+        slip_damper = friction_damping(tangential, normal, seg, row)
+        if slip_damper > 0.0:
             _point_direction(n, seg, work, row, k, False)
-            rate = _inverse_effective_mass(n, work, rhs) * mu * normal \
-                * (1.0 - ratio * ratio) ** 1.5 / seg[row, CONTACT_SLIP_SPEED]
+            rate = _inverse_effective_mass(n, work, rhs) * slip_damper
             friction += rate
             own = max(own, rate)
         if own > largest:
@@ -518,6 +522,83 @@ def contact_time_constant(y, n, seg, work):
     rate = max(rate, friction)
     return (1.0 / rate if rate > 0.0 else np.inf), index
 
+
+
+@njit(cache=True, error_model="numpy")
+def body_jacobian_size(n):
+    """Length of the scratch array of `force_jacobians` and the implicit body part for n
+    coordinates: four n×n matrices (M, S, G and the iteration matrix), then 8 rows of n."""
+    return 4 * n * n + 8 * n
+
+
+@njit(cache=True, error_model="numpy")
+def force_jacobians(y, n, seg, joints, work, jac):
+    """The linearisation of the body's stiff forces at state ``y`` (docs/model.md §4, the
+    implicit body part): into jac[0:n²] the mass matrix M, rebuilt from the LDLᵀ
+    factorisation `joint_accelerations` left in ``work`` (M = L·D·Lᵀ), into jac[n²:2n²]
+    S = ∂Q/∂X and into jac[2n²:3n²] G = ∂Q/∂Ẋ: the Jacobians of the generalized forces Q of
+    the end stops and the ground contacts with respect to the absolute coordinates X and
+    their speeds (row-major; row i: the force on X_i). The rest of Q (gravity, the velocity
+    terms, the muscle torques) is left out: only what is stiff is linearised.
+
+        end stop of joint k:  S += T_p'(q_k)·e_k·e_kᵀ   (e_k = ∂q_k/∂X: 1 at k, −1 at its
+                                                         parent; `passive_stiffness`)
+        contact c:            S += −K_n·(ρ·J_x + J_y)·J_yᵀ
+                              G += −D_f·J_x·J_xᵀ − C_n·(ρ·J_x + J_y)·J_yᵀ
+
+    J_x and J_y: the generalized directions of the point's horizontal and vertical velocity
+    (`_point_direction`); K_n = ∂F_y/∂δ and C_n = ∂F_y/∂δ̇ (`contact_stiffness`);
+    ρ = F_x/F_y (the friction force follows the normal one); D_f = −∂F_x/∂v_x
+    (`friction_damping`). Call right after `joint_accelerations` at ``y``: this overwrites
+    the accelerations in ``work`` (the caller has copied them)."""
+    n_seg = int(seg[0, SEG_COUNT_COLUMN])
+    nb = n - n_seg
+    nn = n * n
+    rhs = nn
+    for i in range(n):
+        for j in range(n):
+            m = 0.0
+            for k in range(min(i, j) + 1):
+                left = 1.0 if k == i else work[i * n + k]
+                right = 1.0 if k == j else work[j * n + k]
+                m += left * work[k * n + k] * right
+            jac[i * n + j] = m
+            jac[nn + i * n + j] = 0.0
+            jac[2 * nn + i * n + j] = 0.0
+    for k in range(n_seg):
+        i = nb + k
+        stiffness = passive_stiffness(y[i], joints, i * JOINT_ROW_SIZE)
+        p = int(seg[k, SEG_PARENT_COLUMN])
+        jac[nn + i * n + i] += stiffness
+        if p >= 0:
+            a = nb + p
+            jac[nn + a * n + a] += stiffness
+            jac[nn + i * n + a] -= stiffness
+            jac[nn + a * n + i] -= stiffness
+    jx = 4 * nn  # the point's directions, J_x then J_y
+    jy = jx + n
+    for c in range(seg.shape[0] - n_seg):
+        o = rhs + 4 * n + CONTACT_SLOTS * c  # `contacts_start`
+        row = n_seg + c
+        tangential, normal, height = work[o], work[o + 1], work[o + 3]
+        if height >= 0.0 or normal <= 0.0:
+            continue
+        spring, damper = contact_stiffness(height, work[o + 4], seg, row)
+        slip_damper = friction_damping(tangential, normal, seg, row)
+        ratio = tangential / normal
+        k = int(seg[row, CONTACT_SEGMENT])
+        _point_direction(n, seg, work, row, k, False)
+        for i in range(n):
+            jac[jx + i] = work[rhs + i]
+        _point_direction(n, seg, work, row, k, True)
+        for i in range(n):
+            jac[jy + i] = work[rhs + i]
+        for i in range(n):
+            lever = ratio * jac[jx + i] + jac[jy + i]
+            for j in range(n):
+                jac[nn + i * n + j] -= spring * lever * jac[jy + j]
+                jac[2 * nn + i * n + j] -= slip_damper * jac[jx + i] * jac[jx + j] \
+                    + damper * lever * jac[jy + j]
 
 #: What `ground_outputs` returns per state: total ground reaction force F_x, F_y (N) and
 #: the centre of mass x, y (m).

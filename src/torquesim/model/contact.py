@@ -134,6 +134,19 @@ def contact_stiffness(height, vertical_speed, rows, c):
     return n * spring / depth * (1.0 - damping * vertical_speed), spring * damping
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def friction_damping(tangential, normal, rows, c):
+    """−∂F_x/∂v_x (N·s/m, ≥ 0) of the regularised Coulomb friction of the contact in row
+    ``rows[c]`` carrying the forces (``tangential``, ``normal``) N: with ρ = |F_x|/(μ·F_y),
+    μ·F_y·v_s²/(v_x² + v_s²)^{3/2} = μ·F_y·(1 − ρ²)^{3/2}/v_s (0 off the ground or with
+    μ = 0). The damper the stability guard and the implicit body part see."""
+    mu = rows[c, CONTACT_FRICTION]
+    if normal <= 0.0 or mu <= 0.0:
+        return 0.0
+    ratio = min(abs(tangential) / (mu * normal), 1.0)
+    return mu * normal * (1.0 - ratio * ratio) ** 1.5 / rows[c, CONTACT_SLIP_SPEED]
+
+
 def take_off_index(grf_y: np.ndarray, threshold: float = 0.0) -> int | None:
     """The first sample whose vertical ground reaction force (N) is at or below ``threshold``
     after one above it (None: the body never leaves the ground). A simulation's force is 0 in

@@ -13,6 +13,7 @@ ORDERS = {"jacobi": fs.JACOBI, "body-first": fs.BODY_FIRST, "muscles-first": fs.
           "every-stage": fs.EVERY_STAGE}
 PREDICTORS = {"hold": fs.HOLD, "linear": fs.LINEAR}
 MUSCLE_SOLVERS = {"rk4": fs.EXPLICIT_RK4, "sdirk2": fs.SDIRK2}
+BODY_SOLVERS = {"rk4": fs.EXPLICIT_RK4, "ros2": fs.ROS2}
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,13 @@ class Coupling:
         method of order 2, one scalar implicit equation per unit and stage solved by
         safeguarded Newton: no stability limit from the muscles). ``"sdirk2"`` with the body
         on explicit RK4 is the IMEX technique.
+    body_solver : str
+        How the body part is integrated over a step: ``"rk4"`` (default, explicit classical
+        RK4, stable only for step/τ ≤ 2.785 of the ground contacts and end stops) or
+        ``"ros2"`` (the two-stage Rosenbrock W-method ROS2, order 2, linearly implicit in the
+        forces of the end stops and the ground contacts, whose Jacobian it factorises once per
+        step: no stability limit from them; docs/model.md §4). The IMEX technique with the
+        body on ROS2 is ``imex-ros2``.
     """
 
     order: str = "jacobi"
@@ -54,6 +62,7 @@ class Coupling:
     iterations: int = 1
     tolerance: float = 0.0
     muscle_solver: str = "rk4"
+    body_solver: str = "rk4"
 
     def __post_init__(self) -> None:
         if self.order not in ORDERS:
@@ -61,9 +70,13 @@ class Coupling:
         if self.muscle_solver not in MUSCLE_SOLVERS:
             raise ModelError("muscle_solver", f"{self.muscle_solver!r} is not one of "
                              f"{', '.join(MUSCLE_SOLVERS)}")
-        if self.order == "every-stage" and self.muscle_solver != "rk4":
-            raise ModelError("muscle_solver", "order 'every-stage' is monolithic RK4; "
-                             "allowed muscle_solver there: rk4")
+        if self.body_solver not in BODY_SOLVERS:
+            raise ModelError("body_solver", f"{self.body_solver!r} is not one of "
+                             f"{', '.join(BODY_SOLVERS)}")
+        for name in ("muscle_solver", "body_solver"):
+            if self.order == "every-stage" and getattr(self, name) != "rk4":
+                raise ModelError(name, f"order 'every-stage' is monolithic RK4; allowed {name} "
+                                 "there: rk4")
         if self.predictor not in PREDICTORS:
             raise ModelError("predictor",
                              f"{self.predictor!r} is not one of {', '.join(PREDICTORS)}")
@@ -82,11 +95,17 @@ class Coupling:
         a[fs.ITERATIONS] = self.iterations
         a[fs.TOLERANCE] = self.tolerance
         a[fs.MUSCLE_SOLVER] = MUSCLE_SOLVERS[self.muscle_solver]
+        a[fs.BODY_SOLVER] = BODY_SOLVERS[self.body_solver]
         return a
 
     @property
     def implicit_muscles(self) -> bool:
         return self.muscle_solver != "rk4"
+
+    @property
+    def implicit_body(self) -> bool:
+        """The body part linearly implicit in its stiff forces (end stops, contacts)."""
+        return self.body_solver != "rk4"
 
     def label(self) -> str:
         """Short name, e.g. ``partitioned`` or ``partitioned[body-first,linear,m=4]``."""
@@ -102,10 +121,18 @@ class Coupling:
                                                        if self.tolerance else ""))
         if self == IMEX:
             return "imex"
+        if self == IMEX_ROS2:
+            return "imex-ros2"
         if self.implicit_muscles:
             parts.append(self.muscle_solver)
+        if self.implicit_body:
+            parts.append(f"body={self.body_solver}")
         return "partitioned" + (f"[{','.join(parts)}]" if parts else "")
 
 
 #: The IMEX technique (``method="imex"``): body on explicit RK4, muscles on implicit SDIRK2.
 IMEX = Coupling(order="body-first", predictor="linear", muscle_solver="sdirk2")
+#: IMEX with the body part on ROS2 (``method="imex-ros2"``): the units and the body's stiff
+#: forces (end stops, ground contacts) implicit, the rest of the body explicit.
+IMEX_ROS2 = Coupling(order="body-first", predictor="linear", muscle_solver="sdirk2",
+                     body_solver="ros2")

@@ -33,12 +33,17 @@ from ..model.body import (
     ENDSTOP_LOW,
     JOINT_ROW_SIZE,
     SEG_COUNT_COLUMN,
+    SEG_INERTIA_COLUMN,
+    SEG_PARENT_COLUMN,
     SEG_SERIAL_COLUMN,
     SPEED_LIMIT,
     BodyKinds,
+    body_jacobian_size,
     body_kinds,
     body_work_size,
     contact_time_constant,
+    force_jacobians,
+    passive_stiffness,
     single_segment_acceleration,
     switch,
     tree_accelerations,
@@ -53,6 +58,7 @@ from ..model.unit_row import (
 from . import tableaus  # the module: coupling_layout's SDIRK2 is the muscle solver's code
 from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     BODY_FIRST,
+    BODY_SOLVER,
     COUPLING_SIZE,
     EVERY_STAGE,
     EXPLICIT_RK4,
@@ -65,6 +71,7 @@ from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     MUSCLES_FIRST,
     ORDER,
     PREDICTOR,
+    ROS2,
     SDIRK2,
     TOLERANCE,
 )
@@ -87,12 +94,14 @@ from .sdirk import unit_implicit_ce_velocity
 # equations solved. COUPLING_*: the coupling-error indicator of the partitioned loop (see
 # rk4_partitioned): Σ over steps of max_j |δτ_j|·h (N·m·s), its largest term's |δτ| (N·m) and
 # time (s), and Σ over steps of max_j |δq_j| (rad).
-# CONTACT_*: the stability guard of the ground contacts (always explicit, in the body part):
+# CONTACT_*: the stability guard of the ground contacts (explicit in the body part's RK4):
 # the largest step/τ of a contact (`contact_time_constant`), its time and contact index.
+# BODY_JACOBIANS: linearisations of the body's stiff forces, each with the factorisation of
+# its iteration matrix (the implicit body part, `_body_ros2`).
 STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
     NEWTON_ITERATIONS, IMPLICIT_SOLVES, COUPLING_TORQUE, COUPLING_TORQUE_MAX, COUPLING_TIME, \
-    COUPLING_ANGLE, CONTACT_RATIO, CONTACT_TIME, CONTACT_INDEX = range(17)
-STATS_SIZE = 17
+    COUPLING_ANGLE, CONTACT_RATIO, CONTACT_TIME, CONTACT_INDEX, BODY_JACOBIANS = range(18)
+STATS_SIZE = 18
 # Status codes. DIVERGED: the state left the physically possible range (a joint more than a
 # full turn beyond its end stops, or faster than its speed limit, ChainModel.speed_limits).
 OK, NON_FINITE, DIVERGED = 0, 1, 2
@@ -110,6 +119,8 @@ _RK4_C = np.array(tableaus.RK4.c)
 _RK4_A, _RK4_B = np.array(tableaus.RK4.a), np.array(tableaus.RK4.b)
 _SDIRK2_A, _SDIRK2_B, _SDIRK2_C = (np.array(tableaus.SDIRK2.a), np.array(tableaus.SDIRK2.b),
                                    np.array(tableaus.SDIRK2.c))
+#: γ of the implicit body part's two-stage Rosenbrock (W-) method ROS2 (`_body_ros2`).
+ROS2_GAMMA = tableaus.ROS2_GAMMA
 
 
 # Classical RK4 (`tableaus.RK4`) on the whole state and on the body part, written once: every
@@ -314,9 +325,10 @@ def rk4_monolithic(system, y0, h, n_steps, out, stats, body, dynamics):
 def _body_rk4(body_arrays, t, y, h, b, y_new, stats, body):
     """One RK4 step of the body part (q, q̇) = y[:2n] with joint torques
     τ(s) = τ0 + slope·s/h over the step (τ0 = b[_TORQUE0], slope = b[_TORQUE_SLOPE]); the
-    result into y_new[:2n]. ``body_arrays`` = (n, segments, flat joints, work array), ``b``
-    the partitioned loop's scratch array, ``body`` its kinds as for `rk4_monolithic`."""
-    n, seg, joints, work = body_arrays
+    result into y_new[:2n]. ``body_arrays`` = (n, segments, flat joints, work array, the
+    implicit body part's scratch, unused here), ``b`` the partitioned loop's scratch array,
+    ``body`` its kinds as for `rk4_monolithic`."""
+    n, seg, joints, work, _ = body_arrays
     m = unit_states_start(n)  # q and q̇: the body part
     for s in range(4):
         if s == 0:
@@ -341,6 +353,152 @@ def _body_rk4(body_arrays, t, y, h, b, y_new, stats, body):
                                                         joints)
     for i in range(m):
         y_new[i] = y[i] + rk4_increment(b[_K1, i], b[_K2, i], b[_K3, i], b[_K4, i], h)
+
+
+@njit(cache=True, error_model="numpy")
+def _body_rates_and_jacobian(body_arrays, t, h, b, row, stats, body, linearise):
+    """The body part's rates at the state b[_STAGE] with the joint torques b[_TORQUE] into
+    b[row, :2n] (q̇, q̈); with ``linearise`` (the step start, time t) the linearisation of
+    its stiff forces there too (M, S, G into ``jac``, `force_jacobians`; one segment:
+    M = A_1, S = T_p'(q), G = 0), and the contacts' time constant into the guard."""
+    n, seg, joints, work, jac = body_arrays
+    stage = b[_STAGE]
+    for j in range(n):
+        b[row, j] = stage[n + j]
+    if body is not None:
+        _general_accelerations(stage, n, b[_TORQUE], seg, joints, work, b, row, body)
+        if linearise:  # (the guard leaves the factorisation and the contacts' forces)
+            if seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
+                _record_contacts(stats, t, h, stage, n, seg, work, body.free_base)
+            force_jacobians(stage, n, seg, joints, work, jac)
+    else:
+        b[row, 1] = single_segment_acceleration(stage[0], b[_TORQUE, 0], seg, joints)
+        if linearise:
+            jac[0] = seg[0, SEG_INERTIA_COLUMN]
+            jac[1] = passive_stiffness(stage[0], joints, 0)
+            jac[2] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _factor_iteration_matrix(n, gh, jac):
+    """W = M − γh·G − (γh)²·S (`force_jacobians`' matrices in ``jac``) into jac[3n²:4n²],
+    factorised in place as P·W = L·U by Gaussian elimination with partial pivoting (the
+    row swaps in jac[4n² + 2n:], as floats)."""
+    nn = n * n
+    w = 3 * nn
+    pivots = 4 * nn + 2 * n
+    for i in range(nn):
+        jac[w + i] = jac[i] - gh * jac[2 * nn + i] - gh * gh * jac[nn + i]
+    for k in range(n):
+        best = k
+        for i in range(k + 1, n):
+            if abs(jac[w + i * n + k]) > abs(jac[w + best * n + k]):
+                best = i
+        jac[pivots + k] = best
+        if best != k:
+            for j in range(n):
+                swap = jac[w + k * n + j]
+                jac[w + k * n + j] = jac[w + best * n + j]
+                jac[w + best * n + j] = swap
+        for i in range(k + 1, n):
+            factor = jac[w + i * n + k] / jac[w + k * n + k]
+            jac[w + i * n + k] = factor
+            for j in range(k + 1, n):
+                jac[w + i * n + j] -= factor * jac[w + k * n + j]
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_stage(n, gh, seg, jac, b, row):
+    """Solve (I − γh·J)·k = r for the body part's stage vector k = (k_q, k_v), r read from
+    and k written to b[row, :2n], J the linearisation [[0, I], [∂q̈/∂q, ∂q̈/∂q̇]] of the
+    stiff forces. In the absolute coordinates X = P·q (φ_k = q_k + φ_parent(k) + offset):
+
+        W·(P·k_v) = M·(P·r_v) + γh·S·(P·r_q),    k_q = r_q + γh·k_v
+
+    with W factorised by `_factor_iteration_matrix`."""
+    nn = n * n
+    nb = n - int(seg[0, SEG_COUNT_COLUMN])
+    w = 3 * nn
+    pivots = 4 * nn + 2 * n
+    rq = pivots + n  # P·r_q, P·r_v, then the right-hand side
+    rv = rq + n
+    x = rv + n
+    for i in range(n):  # P·r (parents come first)
+        jac[rq + i] = b[row, i]
+        jac[rv + i] = b[row, n + i]
+        if i >= nb:
+            p = int(seg[i - nb, SEG_PARENT_COLUMN])
+            if p >= 0:
+                jac[rq + i] += jac[rq + nb + p]
+                jac[rv + i] += jac[rv + nb + p]
+    for i in range(n):
+        v = 0.0
+        for j in range(n):
+            v += jac[i * n + j] * jac[rv + j] + gh * jac[nn + i * n + j] * jac[rq + j]
+        jac[x + i] = v
+    for k in range(n):  # the row swaps, then L·z = rhs and U·(P·k_v) = z
+        p = int(jac[pivots + k])
+        if p != k:
+            swap = jac[x + k]
+            jac[x + k] = jac[x + p]
+            jac[x + p] = swap
+    for i in range(n):
+        v = jac[x + i]
+        for j in range(i):
+            v -= jac[w + i * n + j] * jac[x + j]
+        jac[x + i] = v
+    for i in range(n - 1, -1, -1):
+        v = jac[x + i]
+        for j in range(i + 1, n):
+            v -= jac[w + i * n + j] * jac[x + j]
+        jac[x + i] = v / jac[w + i * n + i]
+    for i in range(n - 1, -1, -1):  # k_v = P⁻¹·(P·k_v), children first
+        v = jac[x + i]
+        if i >= nb:
+            p = int(seg[i - nb, SEG_PARENT_COLUMN])
+            if p >= 0:
+                v -= jac[x + nb + p]
+        b[row, n + i] = v
+        b[row, i] += gh * v
+
+
+@njit(cache=True, error_model="numpy")
+def _body_ros2(body_arrays, t, y, h, b, y_new, stats, body):
+    """One step of the implicit body part: the two-stage Rosenbrock W-method ROS2 of Verwer,
+    Spee, Blom and Hundsdorfer (1999, SIAM J Sci Comput 20:1456) on (q, q̇) = y[:2n], with the
+    joint torques τ(s) = τ0 + slope·s/h as in `_body_rk4` and J the linearisation of the
+    stiff forces (the end stops and the ground contacts, `force_jacobians`) at the step start:
+
+        (I − γhJ)·k1 = f(t, y),   (I − γhJ)·k2 = f(t + h, y + h·k1) − 2·k1,
+        y_new = y + h·(3/2·k1 + 1/2·k2),    γ = 1 + 1/√2
+
+    Order 2 whatever J is (a W-method: the rest of the body's forces stay explicit), and
+    L-stable on the modes J holds, so the contacts and end stops set no step-size limit. Two
+    evaluations of the body's rates and one factorisation of the iteration matrix per step.
+    ``body_arrays`` = (n, segments, flat joints, work array, Jacobian scratch of
+    `body_jacobian_size`); the rest as for `_body_rk4`."""
+    n = body_arrays[0]
+    jac = body_arrays[4]
+    m = unit_states_start(n)
+    gh = ROS2_GAMMA * h
+    for i in range(m):
+        b[_STAGE, i] = y[i]
+    for j in range(n):
+        b[_TORQUE, j] = b[_TORQUE0, j]
+    _body_rates_and_jacobian(body_arrays, t, h, b, _K1, stats, body, True)
+    _factor_iteration_matrix(n, gh, jac)
+    _solve_stage(n, gh, body_arrays[1], jac, b, _K1)
+    for i in range(m):
+        b[_STAGE, i] = y[i] + h * b[_K1, i]
+    for j in range(n):
+        b[_TORQUE, j] = b[_TORQUE0, j] + b[_TORQUE_SLOPE, j]
+    _body_rates_and_jacobian(body_arrays, t, h, b, _K2, stats, body, False)
+    for i in range(m):
+        b[_K2, i] -= 2.0 * b[_K1, i]
+    _solve_stage(n, gh, body_arrays[1], jac, b, _K2)
+    for i in range(m):
+        y_new[i] = y[i] + h * (1.5 * b[_K1, i] + 0.5 * b[_K2, i])
+    stats[BODY_JACOBIANS] += 1
 
 
 @njit(cache=True, error_model="numpy")
@@ -444,8 +602,8 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics,
-                    implicit_muscles):
+def rk4_partitioned(system, h, n_steps, coupling, out, stats, body, dynamics, implicit_muscles,
+                    implicit_body):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -455,13 +613,16 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
     that is zero (hold), the previous step's change (linear extrapolation) or, once the other
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
     ``body`` and ``dynamics``: as for `rk4_monolithic`. The muscle part is advanced by its
-    solver's tableau (`_muscle_part`): SDIRK2 (``implicit_muscles`` True) or RK4 (None),
-    which must be the packed ``coupling``'s. (The every-stage exchange is monolithic RK4:
-    `run_step_loop` runs it in `rk4_monolithic`.)
+    solver's tableau (`_muscle_part`): SDIRK2 (``implicit_muscles`` True) or RK4 (None); the
+    body part by RK4 (``implicit_body`` None, `_body_rk4`) or by ROS2, linearly implicit in
+    its stiff forces (True, `_body_ros2`); both must be the packed ``coupling``'s. The
+    initial state is out[0]. (The every-stage exchange is monolithic RK4: `run_step_loop`
+    runs it in `rk4_monolithic`.)
     """
     seg = system[0]
     check_body(system[1], seg, body)
     if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (implicit_muscles is not None) or \
+            (int(coupling[BODY_SOLVER]) == ROS2) != (implicit_body is not None) or \
             int(coupling[ORDER]) == EVERY_STAGE:
         raise ValueError("the coupling array and the step loop's kinds disagree")
     explicit_muscles = _other_switch(implicit_muscles)
@@ -472,17 +633,16 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
     tol = coupling[TOLERANCE]
     n, nu, width, units, joints, profiles = flat_arrays(system)
     check_unit_kinds(units, nu, dynamics)
-    size = y0.shape[0]
+    size = out.shape[1]
     c = unit_states_start(n)
-    y = y0.copy()
-    y1 = y0.copy()
-    for i in range(size):
-        out[0, i] = y[i]
+    y = out[0].copy()
+    y1 = out[0].copy()
     b = np.empty((_SCRATCH_ROWS, size))
     work = np.empty(body_work_size(n, seg))
-    body_arrays = (n, seg, joints, work)
+    jacobian = np.empty(0 if implicit_body is None else body_jacobian_size(n))
+    body_arrays = (n, seg, joints, work, jacobian)
     muscles = (n, nu, width, units, profiles)
-    q_prev = y0[:n].copy()
+    q_prev = out[0, :n].copy()
     torque_prev = np.empty(n)
     for u in range(nu):
         b[_OMEGA, u] = np.nan
@@ -526,15 +686,21 @@ def rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, body, dynamics
                 joint_muscle_torques(b[_Q], y1, units, nu, b[_TORQUE], n)
                 for j in range(n):
                     b[_TORQUE_SLOPE, j] = b[_TORQUE, j] - b[_TORQUE0, j]
-                _body_rk4(body_arrays, t, y, h, b, y1, stats, body)
+                if implicit_body is None:
+                    _body_rk4(body_arrays, t, y, h, b, y1, stats, body)
+                else:
+                    _body_ros2(body_arrays, t, y, h, b, y1, stats, body)
             else:
-                _body_rk4(body_arrays, t, y, h, b, y1, stats, body)
+                if implicit_body is None:  # (an argument: the other solver is not compiled)
+                    _body_rk4(body_arrays, t, y, h, b, y1, stats, body)
+                else:
+                    _body_ros2(body_arrays, t, y, h, b, y1, stats, body)
                 if order == BODY_FIRST:
                     for j in range(n):
                         b[_Q_SLOPE, j] = y1[j] - y[j]
                 _count_muscle_work(stats, _muscle_part(muscles, t, y, h, substeps, b, y1, dynamics,
                                                      explicit_muscles, implicit_muscles))
-            stats[NFEV_BODY] += 4
+            stats[NFEV_BODY] += 4 if implicit_body is None else 2
             stats[SWEEPS] += 1
             # Later sweeps see the other part's end-of-step values (waveform relaxation).
             joint_muscle_torques(y1, y1, units, nu, b[_TORQUE], n)
@@ -615,6 +781,9 @@ class StepKinds(NamedTuple):
     #: The partitioned loop's muscle part by SDIRK2 (IMEX), else by RK4 (None; None in the
     #: monolithic loop): each compiles only its kind of stage (`_muscle_part`).
     implicit_muscles: bool | None
+    #: The partitioned loop's body part by ROS2, linearly implicit in its stiff forces
+    #: (`_body_ros2`), else by RK4 (None; None in the monolithic loop).
+    implicit_body: bool | None
 
 
 def step_kinds(monolithic: bool, seg, n_coordinates: int, coupling,
@@ -626,8 +795,9 @@ def step_kinds(monolithic: bool, seg, n_coordinates: int, coupling,
     stage is monolithic RK4 (docs/model.md §4) and runs the monolithic loop."""
     monolithic = monolithic or int(coupling[ORDER]) == EVERY_STAGE
     implicit = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
+    implicit_body = not monolithic and int(coupling[BODY_SOLVER]) == ROS2
     return StepKinds(switch(monolithic), body_kinds(seg, n_coordinates), switch(dynamics),
-                     switch(implicit))
+                     switch(implicit), switch(implicit_body))
 
 
 def model_step_kinds(model, monolithic: bool, exchange) -> StepKinds:
@@ -658,8 +828,10 @@ def _chosen_loop(kinds):
         return monolithic
 
     def partitioned(kinds, system, y0, h, n_steps, coupling, out, stats):
-        rk4_partitioned(system, y0, h, n_steps, coupling, out, stats, kinds.body,
-                        kinds.dynamics, kinds.implicit_muscles)
+        for i in range(y0.shape[0]):  # (a loop: a slice assignment compiles a shape check)
+            out[0, i] = y0[i]
+        rk4_partitioned(system, h, n_steps, coupling, out, stats, kinds.body, kinds.dynamics,
+                        kinds.implicit_muscles, kinds.implicit_body)
     return partitioned
 
 

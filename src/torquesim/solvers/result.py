@@ -128,8 +128,10 @@ class RunCost:
     ``rhs_muscle``: explicit evaluations of the muscle part (every unit's CE velocity);
     ``newton_iterations``: residual evaluations of the implicit unit equations (each a Newton
     iteration with its scalar linear solve; IMEX); ``implicit_solves``: implicit stage
-    equations solved. For SciPy's solvers ``rhs_body`` = ``rhs_muscle`` = whole-system calls,
-    ``jacobians`` and ``lu_decompositions`` their Jacobians and LU factorisations."""
+    equations solved; ``jacobians`` and ``lu_decompositions``: the implicit body part's
+    linearisations of its stiff forces, each with its factorisation (ROS2, one per step).
+    For SciPy's solvers ``rhs_body`` = ``rhs_muscle`` = whole-system calls, ``jacobians`` and
+    ``lu_decompositions`` their Jacobians and LU factorisations."""
 
     steps: int
     rhs_body: int
@@ -147,8 +149,8 @@ class StabilityReport:
 
     ``max_step_ratio`` is the largest step/τ seen (τ: a unit's CE time constant, or a ground
     contact's, `contact_time_constant`), at time ``time`` in unit ``unit`` (or "ground
-    contact at POINT"): of the two, the one nearer its limit (a contact's is always RK4's,
-    since the body part is explicit in every technique). ``exceeded`` is True when it
+    contact at POINT"): of the two, the one nearer its limit (a contact's is RK4's, the
+    body part's explicit solver; none with the body on ROS2). ``exceeded`` is True when it
     passed the RK4 limit 2.785: the motion is then probably wrong although bounded.
     ``largest_safe_step`` (s) is the step found by running (``verified_step``, see
     `torquesim.solvers.simulation.verified_run`) when the run failed or broke the limit;
@@ -176,14 +178,13 @@ class StabilityReport:
 
     @property
     def in_contact(self) -> bool:
-        """Whether the binding time constant is a ground contact's (explicit in every
-        fixed-step technique, IMEX included: only a smaller step or Radau helps)."""
+        """Whether the binding time constant is a ground contact's (explicit in the body
+        part's RK4, IMEX's included: a smaller step, ``imex-ros2`` or Radau helps)."""
         return self.unit.startswith("ground contact")
 
     def message(self) -> str:
         where = self.unit if self.in_contact else f"the {self.unit} unit"
-        others = ("method 'reference' (the ground contacts are explicit in every fixed-step "
-                  "technique)" if self.in_contact else
+        others = ("method 'imex-ros2' (implicit contacts) or 'reference'" if self.in_contact else
                   "method 'imex' (implicit muscles) or 'reference'")
         head = (f"step {self.step * 1e3:g} ms exceeds the RK4 stability limit in "
                 f"{where} at t = {self.time:.4f} s (step/τ = {self.max_step_ratio:.3g} "

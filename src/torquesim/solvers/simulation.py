@@ -195,7 +195,9 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
                                 if model.units else "", muscle_step,
                                 math.inf if implicit else fs.RK4_STABILITY_LIMIT)
     contact_ratio = float(stats[fs.CONTACT_RATIO])
-    if contact_ratio / fs.RK4_STABILITY_LIMIT > stability.max_step_ratio / stability.limit:
+    # (the contacts bind explicit RK4 in the body part, not its implicit ROS2)
+    if not (partitioned and coupling.implicit_body) and \
+            contact_ratio / fs.RK4_STABILITY_LIMIT > stability.max_step_ratio / stability.limit:
         point = model.contacts[int(stats[fs.CONTACT_INDEX])].point
         stability = StabilityReport(contact_ratio, float(stats[fs.CONTACT_TIME]),
                                     f"ground contact at {point}", step)
@@ -214,7 +216,9 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
         message = _resolution_warning(model, step)
     cost = RunCost(done, int(stats[fs.NFEV_BODY]), int(stats[fs.NFEV_MUSCLE]), wall,
                    newton_iterations=int(stats[fs.NEWTON_ITERATIONS]),
-                   implicit_solves=int(stats[fs.IMPLICIT_SOLVES]))
+                   implicit_solves=int(stats[fs.IMPLICIT_SOLVES]),
+                   jacobians=int(stats[fs.BODY_JACOBIANS]),
+                   lu_decompositions=int(stats[fs.BODY_JACOBIANS]))
     settings = {"step": step, "steps": n}
     if model.contacts:  # which part is stiff: the smallest time constant of each, s
         settings["unit_time_constant_min_s"] = muscle_step / float(stats[fs.WORST_RATIO]) \
@@ -255,8 +259,8 @@ def _out_of_range(model: ChainModel, y) -> str:
 
 def _advice_text(safe_step: float, verified: bool = False, implicit: bool = False) -> str:
     """What to change after a failed run; ``implicit``: the run's muscles were already
-    implicit (IMEX), or a ground contact (explicit in every technique) limits the step, so the
-    advice is a smaller step or the reference solver."""
+    implicit (IMEX), or a ground contact limits the step, so the advice is a smaller step or
+    the reference solver."""
     others = "method 'reference'" if implicit else \
         "method 'imex' (implicit muscles) or 'reference'"
     if not math.isfinite(safe_step) or safe_step <= 0.0:

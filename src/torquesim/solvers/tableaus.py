@@ -9,7 +9,8 @@ use (`ButcherTableau.real_stability_limit`).
 
 The compiled step loops (`torquesim.solvers.fixed_step`) read their coefficients here:
 classical RK4 for the body, the monolithic state and explicit muscles; the two-stage L-stable
-SDIRK2 for the implicit muscles (IMEX). The registry of techniques
+SDIRK2 for the implicit muscles (IMEX); the Rosenbrock method ROS2 of the implicit body part
+(its γ; `ros2_amplification`). The registry of techniques
 (`torquesim.solvers.techniques`) takes its declared orders from them.
 """
 
@@ -122,3 +123,19 @@ _GAMMA = 1.0 - 1.0 / math.sqrt(2.0)
 #: L-stable.
 SDIRK2 = ButcherTableau("L-stable SDIRK2", ((_GAMMA, 0.0), (1.0 - _GAMMA, _GAMMA)),
                         (1.0 - _GAMMA, _GAMMA), (_GAMMA, 1.0), 2)
+
+#: γ of ROS2, the two-stage Rosenbrock W-method of order 2 of Verwer, Spee, Blom and
+#: Hundsdorfer (1999, SIAM J Sci Comput 20:1456) that the implicit body part runs
+#: (`torquesim.solvers.fixed_step._body_ros2`): (I − γhJ)·k1 = f(y),
+#: (I − γhJ)·k2 = f(y + h·k1) − 2·k1, y_new = y + h·(3/2·k1 + 1/2·k2). γ = 1 + 1/√2 makes it
+#: L-stable when J is the exact Jacobian.
+ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
+#: Its order, with any J (tests/test_tableaus.py checks both from `ros2_amplification`).
+ROS2_ORDER = 2
+
+
+def ros2_amplification(z: complex, w: complex) -> complex:
+    """One ROS2 step of y' = λy with J taken as μ multiplies y by this (z = λh, w = μh):
+    1 + 2z/d + (z²/2 − z)/d², d = 1 − γw. With w = z its stability function."""
+    d = 1.0 - ROS2_GAMMA * w
+    return 1.0 + 2.0 * z / d + (0.5 * z * z - z) / (d * d)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .coupling import IMEX, Coupling
-from .tableaus import RK4, SDIRK2
+from .coupling import IMEX, IMEX_ROS2, Coupling
+from .tableaus import RK4, ROS2_ORDER, SDIRK2
 
 #: SciPy solvers (``scipy.integrate`` classes) usable on the whole system (``scipy:NAME``);
 #: ``reference`` is Radau.
@@ -36,7 +36,8 @@ class Technique:
         Global order of accuracy on smooth problems (declared; measured by the tests); None
         for the adaptive solvers.
     implicit : str
-        Which part is solved implicitly: "none", "muscles" or "all".
+        Which part is solved implicitly: "none", "muscles", "muscles, end stops, contacts"
+        (the body part linearly implicit in those forces) or "all".
     in_study : bool
         Run by ``torquesim compare`` by default.
     headline : bool
@@ -91,6 +92,10 @@ TECHNIQUES: tuple[Technique, ...] = (
     Technique("imex", "imex", IMEX,
               "body explicit RK4, muscles implicit SDIRK2; body first, linear torque "
               "predictor", 2, "muscles", headline=True),
+    Technique("imex-ros2", "imex-ros2", IMEX_ROS2,
+              "body ROS2 (linearly implicit in the end stops and ground contacts), muscles "
+              "implicit SDIRK2; body first, linear torque predictor", 2,
+              "muscles, end stops, contacts", in_study=False),
     Technique("DOP853", "scipy:DOP853", None,
               "one state vector, SciPy's adaptive explicit Runge-Kutta of order 8"),
     Technique("Radau", "scipy:Radau", None,
@@ -155,7 +160,8 @@ def coupling_order(coupling: Coupling) -> int:
     if coupling.order == "every-stage":
         return RK4.order
     order = 2 if (coupling.predictor == "linear" or coupling.iterations > 1) else 1
-    return min(order, SDIRK2.order) if coupling.implicit_muscles else order
+    order = min(order, SDIRK2.order) if coupling.implicit_muscles else order
+    return min(order, ROS2_ORDER) if coupling.implicit_body else order
 
 
 def nominal_order(method: str, coupling: Coupling | None) -> int:
