@@ -1,13 +1,15 @@
 """Regenerate every measured figure and number of the documentation's study page.
 
-    python scripts/make_docs.py            # the study on the default curl and its sensitivity
-                                           # to the SE stiffness (~15 min on 2 cores)
+    python scripts/make_docs.py            # the study on the default curl, its sensitivity
+                                           # to the SE stiffness, the default checks and the
+                                           # study on the squat jump (~45 min on 2 cores)
     python scripts/make_docs.py --check    # only check that every page holds its generated
                                            # blocks (scripts/docblocks.py), that the cheap
                                            # ones (techniques, presets' motions) are current
                                            # and that the optima of docs/optimise.md regenerate
                                            # within their stated spread (~1 min)
-    python scripts/make_docs.py --jump     # only the study on the squat jump (~3 min)
+    python scripts/make_docs.py --jump     # only the study on the squat jump (~25 min)
+    python scripts/make_docs.py --curl     # the curl's study and sensitivity, not the jump
     python scripts/make_docs.py --presets  # only the presets' motions (docs/presets.md), their
                                            # conventions figures and the jumps' result figures
 
@@ -79,7 +81,9 @@ def verdict_block(folder: Path, manifest: dict) -> str:
     names = {"fixed.step.monolithic": "monolithic loop, per step",
              "fixed.step.partitioned": "partitioned loop, per step (exchange)",
              "fixed.body": "one body evaluation", "fixed.muscle": "one muscle evaluation",
-             "fixed.newton": "one Newton iteration (IMEX)"}
+             "fixed.newton": "one Newton iteration (IMEX)",
+             "fixed.jacobian": "one linearisation and factorisation of the body's stiff "
+             "forces (imex-ros2)"}
     unit_times = ", ".join(
         f"{text} {calibration[key] * 1e9:.3g} ns" if calibration[key] > 0 else
         f"{text} not resolved (absorbed by the others)"
@@ -133,8 +137,9 @@ def checks_block() -> str:
             counts["missed"] += r["outcome"] == "missed"
             counts["right"] += r["max_error_rad"] <= RIGHT_RAD
             counts["alarms"] += r["outcome"] == "false alarm"
-    return (f"Of {counts['runs']} runs (the curl and the arm raise; monolithic, IMEX and all 24 "
-            "coupling variants; steps 20, 10, 5, 2, 1, 0.5 and 0.25 ms) with `simulate()`'s "
+    return (f"Of {counts['runs']} runs (the curl and the arm raise; monolithic, IMEX, "
+            "imex-ros2 and all 24 coupling variants; steps 20, 10, 5, 2, 1, 0.5 and 0.25 ms) "
+            "with `simulate()`'s "
             f"default arguments, {counts['wrong']} end more than {WRONG_RAD:g} rad off the "
             f"reference and {counts['missed']} of them are silent; of the {counts['right']} "
             f"within {RIGHT_RAD:g} rad, {counts['alarms']} carry a warning (measured "
@@ -155,7 +160,8 @@ def stiffness_block() -> str:
             f"{RK4_STABILITY_LIMIT * contact * 1e3:.3g} ms): the muscle part is still the stiff "
             "one, by a factor of "
             f"{contact / unit:.0f}, but the contacts now cap the step of IMEX too, whose body "
-            f"part (contacts included) stays explicit (measured {datetime.now(UTC).date()}).\n")
+            "part (contacts included) stays explicit; imex-ros2 treats the contacts "
+            f"implicitly (measured {datetime.now(UTC).date()}).\n")
 
 
 def jump_blocks(torquesim, tmp: Path) -> dict[str, str]:
@@ -243,6 +249,9 @@ def main() -> None:
                         help="only rewrite the techniques table of docs/concepts.md")
     parser.add_argument("--jump", action="store_true",
                         help="only the study on the squat jump")
+    parser.add_argument("--curl", action="store_true",
+                        help="the curl's study, its sensitivity and the default checks, not "
+                             "the jump")
     parser.add_argument("--presets", action="store_true",
                         help="only the presets' motions of docs/presets.md, their conventions "
                              "figures and the jumps' result figures")
@@ -303,7 +312,8 @@ def main() -> None:
         if code:
             sys.exit(f"torquesim compare --vary failed (exit {code})")
         shutil.copyfile(vary / "sensitivity.png", ROOT / "docs" / "figures" / "sensitivity.png")
-        blocks.update(jump_blocks(torquesim, Path(tmp)))
+        if not args.curl:
+            blocks.update(jump_blocks(torquesim, Path(tmp)))
     write_blocks("docs/study.md", blocks)
     print(f"wrote docs/figures/{{{','.join((*FIGURES, 'sensitivity.png'))}}}")
 

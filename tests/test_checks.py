@@ -9,16 +9,17 @@ from torquesim.study.checks import RIGHT_RAD, check_study, check_techniques
 
 def test_every_coupling_variant_is_in_the_grid():
     names = [name for name, _, _ in check_techniques()]
-    assert len(names) == 2 + 3 * 2 * 2 * 2 and len(set(names)) == len(names)
+    assert len(names) == 3 + 3 * 2 * 2 * 2 and len(set(names)) == len(names)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("preset", ["builtin:elbow-curl", "builtin:arm-raise"])
 def test_no_run_more_than_a_tenth_of_a_radian_off_is_silent(preset):
-    """Monolithic, IMEX and all 24 coupling variants at 20 … 0.25 ms with simulate()'s default
-    arguments: every run more than 0.1 rad off the reference warns (or is refused). Warnings on
-    runs within 0.01 rad (false alarms: the τ guard on runs that broke the stability limit but
-    stayed close, estimates just above 0.5° on runs at 0.4–0.57°) stay rare. The step advice
+    """Monolithic, IMEX, imex-ros2 and all 24 coupling variants at 20 … 0.25 ms with
+    simulate()'s default arguments: every run more than 0.1 rad off the reference warns (or is
+    refused). Warnings on runs within 0.01 rad (false alarms: the τ guard on runs that broke
+    the stability limit but stayed close, estimates just above 0.5° on runs at 0.4–0.57°) stay
+    rare. The step advice
     is skipped (`check_study`): it runs only where a warning already stands, so it changes no
     verdict, and it was three quarters of this test's time (the advice is tested in
     test_wrong_numbers.py and test_bad_input.py)."""

@@ -106,7 +106,7 @@ def test_study_on_a_short_curl_measures_what_model_md_says(tmp_path, monkeypatch
     # modelled cost: on readings made from known unit times (not the clock, which moves with
     # the machine's load), the calibration reproduces every calibration run's time
     unit_time = {"step.monolithic": 3e-8, "step.partitioned": 5e-8, "body": 2e-8,
-                 "muscle": 4e-8, "newton": 6e-8}
+                 "muscle": 4e-8, "newton": 6e-8, "jacobian": 9e-8}
     synthetic = [dict(r) for r in rows]
     for r in synthetic:
         if r["h_s"] is not None:
@@ -283,7 +283,7 @@ def test_the_verdict_does_not_move_with_noise_in_the_clock(monkeypatch):
     quiet readings are made from each run's work counts and fixed unit times (not the clock,
     so the test does not depend on the load of the machine running it), then perturbed."""
     unit_time = {"step.monolithic": 3e-8, "step.partitioned": 5e-8, "body": 2e-8,
-                 "muscle": 4e-8, "newton": 6e-8}
+                 "muscle": 4e-8, "newton": 6e-8, "jacobian": 9e-8}
     adaptive = {"step": 4e-6, "call": 2e-6, "lu": 2e-5}
 
     def modelled_clock(result):
@@ -291,7 +291,7 @@ def test_the_verdict_does_not_move_with_noise_in_the_clock(monkeypatch):
         if result.step:
             row = {"steps": cost.steps, "rhs_body": cost.rhs_body,
                    "rhs_muscle": cost.rhs_muscle, "newton_iterations": cost.newton_iterations,
-                   "method": result.method}
+                   "jacobians": cost.jacobians, "method": result.method}
             return sum(unit_time[name] * count(row) for name, count in FIXED_STEP_WORK)
         return (adaptive["step"] * cost.steps + adaptive["call"] * cost.rhs_body
                 + adaptive["lu"] * cost.lu_decompositions)

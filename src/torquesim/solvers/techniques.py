@@ -95,7 +95,7 @@ TECHNIQUES: tuple[Technique, ...] = (
     Technique("imex-ros2", "imex-ros2", IMEX_ROS2,
               "body ROS2 (linearly implicit in the end stops and ground contacts), muscles "
               "implicit SDIRK2; body first, linear torque predictor", 2,
-              "muscles, end stops, contacts", in_study=False),
+              "muscles, end stops, contacts"),
     Technique("DOP853", "scipy:DOP853", None,
               "one state vector, SciPy's adaptive explicit Runge-Kutta of order 8"),
     Technique("Radau", "scipy:Radau", None,

@@ -1,7 +1,8 @@
 """How well `torquesim.simulate`'s default checks catch wrong runs.
 
-Every fixed-step technique — monolithic RK4, IMEX, and every coupling variant of the
-partitioned technique (order × predictor × iterations × muscle solver) — at a range of steps,
+Every fixed-step technique — monolithic RK4, IMEX, IMEX with the body on ROS2, and every
+coupling variant of the partitioned technique (order × predictor × iterations × muscle
+solver) — at a range of steps,
 simulated with `simulate`'s default arguments and compared
 with a Radau reference. A run more than `WRONG_RAD` off must carry a warning (or be
 refused); a warning on a run within `RIGHT_RAD` is a false alarm.
@@ -25,8 +26,9 @@ RIGHT_RAD = 0.01
 
 
 def check_techniques() -> list[tuple[str, str, Coupling | None]]:
-    """(name, method, coupling) of monolithic, IMEX and every coupling variant."""
-    out = [("monolithic", "monolithic", None), ("imex", "imex", None)]
+    """(name, method, coupling) of monolithic, IMEX, imex-ros2 and every coupling variant."""
+    out = [("monolithic", "monolithic", None), ("imex", "imex", None),
+           ("imex-ros2", "imex-ros2", None)]
     for order, predictor, sweeps, solver in itertools.product(
             ("jacobi", "body-first", "muscles-first"), ("hold", "linear"), (1, 3),
             ("rk4", "sdirk2")):

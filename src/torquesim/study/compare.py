@@ -51,13 +51,15 @@ COLUMNS = ("technique", "method", "h_s", "tolerance", "max_error_rad", "max_erro
 
 #: The work whose unit times are calibrated: (name, what it counts). Fixed-step runs count
 #: steps per kernel (the monolithic loop and the partitioned loop have their own per-step
-#: overhead), body and muscle evaluations and Newton iterations; SciPy runs count steps,
+#: overhead), body and muscle evaluations, Newton iterations and the implicit body part's
+#: linearisations with their factorisations (imex-ros2); SciPy runs count steps,
 #: right-hand-side calls and LU factorisations.
 FIXED_STEP_WORK = (("step.monolithic", lambda r: r["steps"] * runs_monolithic(r["method"])),
                    ("step.partitioned",
                     lambda r: r["steps"] * (not runs_monolithic(r["method"]))),
                    ("body", lambda r: r["rhs_body"]), ("muscle", lambda r: r["rhs_muscle"]),
-                   ("newton", lambda r: r["newton_iterations"]))
+                   ("newton", lambda r: r["newton_iterations"]),
+                   ("jacobian", lambda r: r["jacobians"]))
 ADAPTIVE_WORK = (("step", lambda r: r["steps"]), ("call", lambda r: r["rhs_body"]),
                  ("lu", lambda r: r["lu_decompositions"]))
 
@@ -233,7 +235,8 @@ def calibrate(rows: list[dict]) -> dict[str, float]:
     wall time, and each row's ``modelled_cost_s`` = Σ count × time per unit.
 
     Fixed-step runs: wall ≈ c_step,kernel·steps + c_body·(body evaluations) +
-    c_muscle·(muscle evaluations) + c_newton·(Newton iterations), the per-step overhead
+    c_muscle·(muscle evaluations) + c_newton·(Newton iterations) + c_jacobian·(the body's
+    linearisations and their factorisations, imex-ros2), the per-step overhead
     separate for the monolithic and the partitioned loop (`FIXED_STEP_WORK`); SciPy runs:
     wall ≈ c_step·steps + c_call·calls + c_lu·(LU factorisations). Non-negative least squares
     on the relative errors (every run weighs alike), over the rows marked ``calibration_run``

@@ -51,6 +51,8 @@ def calibration_text(coefficients: dict[str, float]) -> dict[str, str]:
              "fixed.body": "one body evaluation (joint accelerations)",
              "fixed.muscle": "one muscle evaluation (every unit's CE velocity)",
              "fixed.newton": "one Newton iteration of an implicit unit equation",
+             "fixed.jacobian": "one linearisation of the body's stiff forces with its "
+             "factorisation (imex-ros2)",
              "scipy.step": "SciPy: per-step overhead", "scipy.call": "SciPy: one right-hand side "
              "call (from Python)", "scipy.lu": "SciPy: one LU factorisation"}
     return {names[k]: f"{v * 1e9:.4g} ns" if v > 0 else "not resolved (absorbed by the others)"
