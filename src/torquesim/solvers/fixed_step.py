@@ -1,5 +1,6 @@
 """Fixed-step solvers, compiled, for any chain: monolithic RK4 and partitioned RK4 with every
-coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX technique).
+coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX technique), the
+body part explicit (RK4) or linearly implicit in its stiff forces (ROS2, ``imex-ros2``).
 
 The loops take the packed chain arrays (`PackedChain`) as one tuple, the body's kinds
 (`BodyKinds`, None for one segment) and the units' switches (`StepKinds`), write the state
