@@ -329,7 +329,7 @@ def _body_rk4(body_arrays, t, y, h, b, y_new, stats, body):
     result into y_new[:2n]. ``body_arrays`` = (n, segments, flat joints, work array, the
     implicit body part's scratch, unused here), ``b`` the partitioned loop's scratch array,
     ``body`` its kinds as for `rk4_monolithic`."""
-    n, seg, joints, work, _ = body_arrays
+    n = body_arrays[0]
     m = unit_states_start(n)  # q and q̇: the body part
     for s in range(4):
         if s == 0:
@@ -343,41 +343,40 @@ def _body_rk4(body_arrays, t, y, h, b, y_new, stats, body):
         for j in range(n):
             b[_TORQUE, j] = b[_TORQUE0, j] + fraction * b[_TORQUE_SLOPE, j] if s > 0 \
                 else b[_TORQUE0, j]
-            b[_K1 + s, j] = b[_STAGE, n + j]
-        if body is not None:
-            _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, _K1 + s,
-                                   body)
-            if s == 0 and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
-                _record_contacts(stats, t, h, b[_STAGE], n, seg, work, body.free_base)
-        else:
-            b[_K1 + s, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg,
-                                                        joints)
+        _body_stage_rates(body_arrays, t, h, b, _K1 + s, stats, body, s == 0)
     for i in range(m):
         y_new[i] = y[i] + rk4_increment(b[_K1, i], b[_K2, i], b[_K3, i], b[_K4, i], h)
 
 
-@njit(cache=True, error_model="numpy")
-def _body_rates_and_jacobian(body_arrays, t, h, b, row, stats, body, linearise):
+@njit(cache=True, error_model="numpy", inline="always")
+def _body_stage_rates(body_arrays, t, h, b, row, stats, body, at_start):
     """The body part's rates at the state b[_STAGE] with the joint torques b[_TORQUE] into
-    b[row, :2n] (q̇, q̈); with ``linearise`` (the step start, time t) the linearisation of
-    its stiff forces there too (M, S, G into ``jac``, `force_jacobians`; one segment:
-    M = A_1, S = T_p'(q), G = 0), and the contacts' time constant into the guard."""
-    n, seg, joints, work, jac = body_arrays
-    stage = b[_STAGE]
+    b[row, :2n] (q̇, q̈), for both body solvers; ``at_start`` (the step's first stage, time
+    t): the contacts' time constant into the guard too (it leaves the factorisation of M and
+    the contacts' forces in the work array)."""
+    n, seg, joints, work, _ = body_arrays
     for j in range(n):
-        b[row, j] = stage[n + j]
+        b[row, j] = b[_STAGE, n + j]
     if body is not None:
-        _general_accelerations(stage, n, b[_TORQUE], seg, joints, work, b, row, body)
-        if linearise:  # (the guard leaves the factorisation and the contacts' forces)
-            if seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
-                _record_contacts(stats, t, h, stage, n, seg, work, body.free_base)
-            force_jacobians(stage, n, seg, joints, work, jac)
+        _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, row, body)
+        if at_start and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
+            _record_contacts(stats, t, h, b[_STAGE], n, seg, work, body.free_base)
     else:
-        b[row, 1] = single_segment_acceleration(stage[0], b[_TORQUE, 0], seg, joints)
-        if linearise:
-            jac[0] = seg[0, SEG_INERTIA_COLUMN]
-            jac[1] = passive_stiffness(stage[0], joints, 0)
-            jac[2] = 0.0
+        b[row, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg, joints)
+
+
+@njit(cache=True, error_model="numpy")
+def _linearise_body(body_arrays, b, body):
+    """The linearisation of the body's stiff forces at b[_STAGE], right after
+    `_body_stage_rates` there: M, S, G into the scratch ``jac`` (`force_jacobians`; one
+    segment: M = A_1, S = T_p'(q), G = 0)."""
+    n, seg, joints, work, jac = body_arrays
+    if body is not None:
+        force_jacobians(b[_STAGE], n, seg, joints, work, jac)
+    else:
+        jac[0] = seg[0, SEG_INERTIA_COLUMN]
+        jac[1] = passive_stiffness(b[_STAGE, 0], joints, 0)
+        jac[2] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -486,14 +485,15 @@ def _body_ros2(body_arrays, t, y, h, b, y_new, stats, body):
         b[_STAGE, i] = y[i]
     for j in range(n):
         b[_TORQUE, j] = b[_TORQUE0, j]
-    _body_rates_and_jacobian(body_arrays, t, h, b, _K1, stats, body, True)
+    _body_stage_rates(body_arrays, t, h, b, _K1, stats, body, True)
+    _linearise_body(body_arrays, b, body)
     _factor_iteration_matrix(n, gh, jac)
     _solve_stage(n, gh, body_arrays[1], jac, b, _K1)
     for i in range(m):
         b[_STAGE, i] = y[i] + h * b[_K1, i]
     for j in range(n):
         b[_TORQUE, j] = b[_TORQUE0, j] + b[_TORQUE_SLOPE, j]
-    _body_rates_and_jacobian(body_arrays, t, h, b, _K2, stats, body, False)
+    _body_stage_rates(body_arrays, t, h, b, _K2, stats, body, False)
     for i in range(m):
         b[_K2, i] -= 2.0 * b[_K1, i]
     _solve_stage(n, gh, body_arrays[1], jac, b, _K2)
