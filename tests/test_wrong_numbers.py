@@ -111,3 +111,34 @@ def test_every_run_off_by_more_than_a_tenth_of_a_radian_carries_a_warning(model,
     error = error_on_reference_grid(run, reference)
     if error > 0.1:
         assert run.message, f"{name} at {step * 1e3:g} ms is {error:.3g} rad off, silently"
+
+
+def test_a_scipy_run_far_off_carries_a_warning_and_a_close_one_none(model, reference):
+    """SciPy's error control can pass a run that is far off: explicit RK45 at rtol 1e-3 on
+    the curl (its stiff units) was 68° off the reference without a word. The check against
+    the run at tolerances ten times tighter flags it and says what to change. Its estimate is
+    a lower bound there (32°): the tighter explicit run is off too, the units' stiffness
+    rather than the tolerance setting its error. Radau at 1e-6 stays quiet."""
+    far = ts.simulate(model, "scipy:RK45", rtol=1e-3)
+    true = error_on_reference_grid(far, reference)
+    estimate = far.settings["estimated_error_rad"]
+    assert true > 0.1 and 0.25 * true < estimate <= 1.1 * true, (true, estimate)
+    assert "exceeds the tolerance" in far.message and "scipy:Radau" in far.message
+    close = ts.simulate(model, "scipy:Radau", rtol=1e-6)
+    assert close.message == "" and close.settings["estimated_error_rad"] < CLI_TOLERANCE
+    assert error_on_reference_grid(close, reference) < 2.0 * close.settings[
+        "estimated_error_rad"] + 1e-9
+
+
+def test_a_scipy_solver_that_meets_a_non_finite_state_fails_saying_what_to_change():
+    """Radau's Jacobian of a non-finite state made SciPy raise (a traceback); the run now
+    ends failed, saying what to change, and `simulate` raises its own SimulationError. A
+    state that overflows the contact force (the body far below the ground) makes it so."""
+    model = ts.load_model("builtin:squat-jump").replace(duration=0.01)
+    y0 = model.initial_state().state.copy()
+    y0[1] = -1e200  # the base's height, m
+    failed = ts.simulate(model, "scipy:Radau", rtol=1e-6, initial_state=y0, check=False)
+    assert failed.status == "failed" and "non-finite" in failed.message
+    assert "use smaller rtol and atol or method 'reference'" in failed.message
+    with pytest.raises(ts.SimulationError, match="non-finite"):
+        ts.simulate(model, "scipy:Radau", rtol=1e-6, initial_state=y0)

@@ -62,7 +62,7 @@ def simulate(
     *,
     duration: float | None = None,
     coupling: Coupling | None = None,
-    rtol: float = REFERENCE_RTOL,
+    rtol: float | None = None,
     atol: float | None = None,
     output_step: float = DEFAULT_OUTPUT_STEP,
     initial_state=None,
@@ -81,9 +81,10 @@ def simulate(
         ``monolithic``: classical RK4 on the whole state. ``partitioned``: each part with its
         own RK4, exchanging at step boundaries as ``coupling`` says (default zero-order hold).
         ``imex``: the body on explicit RK4, each unit's CE equation on implicit SDIRK2.
-        ``reference``: SciPy Radau at ``rtol`` (default 1e-10) and ``atol`` (default 1e-12; on
-        a body with ground contacts 1e-10, `GROUND_REFERENCE_ATOL`). ``scipy:RK45`` etc.: that
-        SciPy solver on the whole system.
+        ``reference``: SciPy Radau at ``rtol`` (default 1e-10, `REFERENCE_RTOL`) and ``atol``
+        (default 1e-12; on a body with ground contacts 1e-10, `GROUND_REFERENCE_ATOL`).
+        ``scipy:RK45`` etc.: that SciPy solver on the whole system, at ``rtol`` and ``atol``
+        (the same defaults).
     step : float or None
         Fixed step for the RK4 methods, s. Must divide the duration. Default (None): chosen
         from the model (`default_step_run`): 0.1 ms (`default_fixed_step`), or, where a run
@@ -106,9 +107,12 @@ def simulate(
         studies that try many steps on purpose turn it off. (With ``step`` None the search
         runs regardless: it chooses the step.)
     tolerance : float or None
-        Fixed-step runs: estimate the max angle error by Richardson extrapolation against a
-        run at twice the step (half a run's work) and, when that exceeds the tolerance,
-        against a run at half the step (error ≈ max|q_h − q_h/2|·2^p/(2^p − 1), p the
+        SciPy solvers (``scipy:NAME``; not ``reference``): estimate the max angle error
+        against a run at ``rtol`` and ``atol`` `TIGHTER` times tighter and warn as below
+        (their error control can pass a run that is far off: the explicit ones at loose
+        tolerances on stiff units, tests/test_wrong_numbers.py). Fixed-step runs: estimate
+        the max angle error by Richardson extrapolation against a run at twice the step (half
+        a run's work) and, when that exceeds the tolerance, against a run at half the step (error ≈ max|q_h − q_h/2|·2^p/(2^p − 1), p the
         technique's order, `nominal_order`), and warn (``result.message``) when it
         exceeds ``tolerance`` (rad). Default 0.5°; None turns the check off. The estimate is
         in ``result.settings["estimated_error_rad"]``.
@@ -148,9 +152,13 @@ def simulate(
             raise ModelError("method", f"{method!r}: allowed {allowed}")
         if atol is None:
             atol = GROUND_REFERENCE_ATOL if model.contacts else REFERENCE_ATOL
+        rtol = REFERENCE_RTOL if rtol is None else rtol
         check_range("rtol", rtol, 1e-14, 1.0)
         check_range("atol", atol, 1e-16, 1.0)
         result = _adaptive(model, packed, y0, method, name, rtol, atol, output_step)
+        if tolerance is not None and method != "reference" and result.success:
+            check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
+            result = _with_tighter_estimate(result, model, packed, y0, method, name, tolerance)
     else:
         raise ModelError("method", f"{method!r} is not one of {', '.join(METHODS)} or scipy:NAME")
     if check and not result.success:
@@ -423,6 +431,36 @@ def _resolution_warning(model, step) -> str:
             f"inaccurate; use a step ≤ {RAMP_RESOLUTION * min(ramps) * 1e3:.3g} ms")
 
 
+#: The accuracy check of a SciPy run at the caller's tolerances: the run again at tolerances
+#: this many times tighter (`_with_tighter_estimate`).
+TIGHTER = 10.0
+
+
+def _with_tighter_estimate(result, model, packed, y0, method, name, tolerance):
+    """``result`` (a SciPy run) with an estimate of its max angle error (rad) and a warning
+    above ``tolerance``: max|q − q_tight| against the run at rtol and atol `TIGHTER` times
+    tighter (the tighter run taken as right; it failing, the estimate is infinite)."""
+    rtol, atol = result.settings["rtol"], result.settings["atol"]
+    tight = _adaptive(model, packed, y0, method, name, max(rtol / TIGHTER, 1e-14),
+                      max(atol / TIGHTER, 1e-16), result.settings["output_step"])
+    n = min(tight.time.size, result.time.size)
+    estimate = float(np.max(np.abs(result.q[:n] - tight.q[:n]))) \
+        if tight.success else math.inf
+    how = f"against rtol and atol {TIGHTER:g}x tighter"
+    settings = {**result.settings, "estimated_error_rad": estimate, "tolerance_rad": tolerance,
+                "error_estimate": how}
+    message = result.message
+    if estimate > tolerance:
+        explicit = "" if name in ("Radau", "BDF", "LSODA") else \
+            " (an explicit solver: on stiff units or contacts use scipy:Radau or scipy:BDF)"
+        what = (f"estimated max angle error {math.degrees(estimate):.3g}° ({how}) exceeds "
+                f"the tolerance {math.degrees(tolerance):.3g}°" if math.isfinite(estimate)
+                else f"the run {how} failed, so no error estimate stands for this run")
+        warning = f"{what}: use smaller rtol and atol{explicit}, or method 'reference'"
+        message = f"{message} Also: {warning}" if message else warning
+    return replace(result, settings=settings, message=message)
+
+
 def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> SimulationResult:
     """Drive a SciPy solver step by step (counting accepted steps and every right-hand-side
     call, Jacobian differences included) and sample its dense output on the output grid."""
@@ -448,7 +486,14 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
 
         solver = getattr(scipy.integrate, name)(rhs, 0.0, y0, model.duration, rtol=rtol, atol=atol)
         while solver.status == "running":
-            message = solver.step() or ""
+            try:
+                message = solver.step() or ""
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
+                # SciPy raises, not fails, on a Jacobian or an LU of a non-finite state
+                if isinstance(error, ValueError) and "infs or nans" not in str(error).lower():
+                    raise
+                message = f"the state went non-finite ({error})"
+                break
             if solver.status == "failed":
                 break
             steps += 1
@@ -462,8 +507,9 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
     wall = _time.perf_counter() - start
     ok = filled == grid.size and np.all(np.isfinite(states))
     if not ok:
-        message = (f"{label} (rtol {rtol:g}) failed at t = {solver.t:.6g} s: "
-                   f"{message or 'stopped early'}")
+        others = "" if label == "reference" else " or method 'reference'"
+        message = (f"{label} (rtol {rtol:g}, atol {atol:g}) failed at t = {solver.t:.6g} s: "
+                   f"{message or 'stopped early'}; use smaller rtol and atol{others}")
     cost = RunCost(steps, calls[0], calls[0], wall,
                    jacobians=int(getattr(solver, "njev", 0) or 0),
                    lu_decompositions=int(getattr(solver, "nlu", 0) or 0))
