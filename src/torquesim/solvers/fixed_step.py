@@ -91,8 +91,8 @@ from .sdirk import unit_implicit_ce_velocity
 
 # Indices of the stats array returned by the loops.
 # NEWTON_ITERATIONS: residual evaluations of the implicit unit equations (each one a Newton
-# iteration with its scalar linear solve, or the bracket check); IMPLICIT_SOLVES: implicit stage
-# equations solved. COUPLING_*: the coupling-error indicator of the partitioned loop (see
+# iteration with its scalar linear solve, or the eccentric clamp's check where the iteration
+# needs it); IMPLICIT_SOLVES: implicit stage equations solved. COUPLING_*: the coupling-error indicator of the partitioned loop (see
 # rk4_partitioned): Σ over steps of max_j |δτ_j|·h (N·m·s), its largest term's |δτ| (N·m) and
 # time (s), and Σ over steps of max_j |δq_j| (rad).
 # CONTACT_*: the stability guard of the ground contacts (explicit in the body part's RK4):

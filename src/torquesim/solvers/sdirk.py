@@ -55,16 +55,18 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
 
     G(ω_max) ≤ 0 always; if G(−ω_max) ≤ 0 the eccentric clamp holds and w = −ω_max, as in the
     explicit equation. Otherwise G has one root (h decreasing, the SE term non-increasing),
-    found by Newton's method from ``guess``, safeguarded by bisection on the bracket; a Newton
-    step that would cross the kink of T_ω at w = 0 is stopped at w = 0, so every later step
-    stays on one smooth branch. Returns (w, residual evaluations).
+    found by Newton's method from ``guess``, safeguarded by bisection on the bracket
+    [−ω_max, ω_max]; a Newton step that would cross the kink of T_ω at w = 0 is stopped at
+    w = 0, so every later step stays on one smooth branch. G(−ω_max) is evaluated only when
+    the iteration would leave the bracket below (or close on its lower end): away from the
+    clamp an iterate with G > 0 proves the root above −ω_max, and the iterates are those of
+    checking the clamp first, one residual evaluation fewer. Returns (w, residual
+    evaluations).
     """
     wmax = p[o + OMEGA_MAX]
     cap_a = max(activation, ACTIVATION_FLOOR)
-    g_low, _ = _implicit_residual(-wmax, stretch_known, theta_cc_known, sign, gamma_h, cap_a, p, o)
-    evaluations = 1
-    if g_low <= 0.0:
-        return -wmax, evaluations
+    evaluations = 0
+    lower_checked = False  # G(−ω_max) > 0 shown (the clamp does not hold)
     lo, hi = -wmax, wmax
     w = min(max(guess, -wmax), wmax)
     for _ in range(100):
@@ -74,11 +76,20 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
             return w, evaluations
         if g > 0.0:
             lo = w
+            lower_checked = True
         else:
             hi = w
-        if hi - lo <= 1e-14 * (1.0 + abs(w)):
-            return w, evaluations
         w_new = w - g / slope if slope < 0.0 else 0.5 * (lo + hi)
+        closed = hi - lo <= 1e-14 * (1.0 + abs(w))
+        if not lower_checked and (closed or not (lo < w_new < hi)):
+            g_low, _ = _implicit_residual(-wmax, stretch_known, theta_cc_known, sign, gamma_h,
+                                          cap_a, p, o)
+            evaluations += 1
+            if g_low <= 0.0:
+                return -wmax, evaluations
+            lower_checked = True
+        if closed:
+            return w, evaluations
         if not (lo < w_new < hi):
             w_new = 0.5 * (lo + hi)
         if (w_new > 0.0) != (w > 0.0) and w != 0.0 and lo < 0.0 < hi:
