@@ -205,6 +205,60 @@ def test_implicit_stage_solves_the_ce_equation_at_its_own_state(stretch, theta_c
         assert explicit == pytest.approx(w, abs=1e-6)
 
 
+def _clamp_first_solve(stretch, theta_cc, sign, gamma_h, a, p, guess):
+    """The implicit stage solve as it was written before: G(−ω_max) checked first, then the
+    same safeguarded Newton iteration (a transcription, for the test below)."""
+    from torquesim.solvers.sdirk import _implicit_residual
+
+    wmax = p[tg.OMEGA_MAX]
+    cap = max(a, tg.ACTIVATION_FLOOR)
+    if _implicit_residual(-wmax, stretch, theta_cc, sign, gamma_h, cap, p)[0] <= 0.0:
+        return -wmax, 1
+    evaluations, lo, hi = 1, -wmax, wmax
+    w = min(max(guess, -wmax), wmax)
+    for _ in range(100):
+        g, slope = _implicit_residual(w, stretch, theta_cc, sign, gamma_h, cap, p)
+        evaluations += 1
+        if g == 0.0:
+            return w, evaluations
+        lo, hi = (w, hi) if g > 0.0 else (lo, w)
+        if hi - lo <= 1e-14 * (1.0 + abs(w)):
+            return w, evaluations
+        w_new = w - g / slope if slope < 0.0 else 0.5 * (lo + hi)
+        if not (lo < w_new < hi):
+            w_new = 0.5 * (lo + hi)
+        if (w_new > 0.0) != (w > 0.0) and w != 0.0 and lo < 0.0 < hi:
+            w = 0.0
+            continue
+        if abs(w_new - w) <= 1e-12 * (1.0 + abs(w)):
+            return w_new, evaluations
+        w = w_new
+    return w, evaluations
+
+
+@settings(max_examples=300, deadline=None)
+@given(stretch=st.floats(-0.05, 0.6), theta_cc=st.floats(-0.5, 2.5), a=st.floats(0.0, 1.0),
+       gamma_h=st.floats(1e-6, 0.02), sign=st.sampled_from([1.0, -1.0]),
+       guess=st.floats(-30.0, 30.0), flexor=st.booleans())
+def test_the_clamp_checked_on_demand_gives_the_same_velocity_with_fewer_evaluations(
+        stretch, theta_cc, a, gamma_h, sign, guess, flexor):
+    """Checking the eccentric clamp only where the iteration needs it leaves every iterate
+    as it was: the same w to the last bit. Away from the clamp it never costs more (one
+    residual evaluation fewer unless a Newton step left the bracket below, where the check
+    is made as before); at the clamp, −ω_max itself, after the few Newton steps taken
+    before the iteration leaves the bracket (at most 4 more evaluations in 20 000 random
+    draws of these ranges, nearly always 1)."""
+    p = PF if flexor else PE
+    w, evaluations = unit_implicit_ce_velocity(stretch, theta_cc, sign, gamma_h, a, p, guess)
+    w_before, evaluations_before = _clamp_first_solve(stretch, theta_cc, sign, gamma_h, a, p,
+                                                      guess)
+    assert w == w_before
+    if w == -p[tg.OMEGA_MAX]:
+        assert evaluations <= evaluations_before + 5
+    else:
+        assert evaluations <= evaluations_before
+
+
 def test_implicit_stage_tends_to_the_explicit_velocity_for_a_tiny_step():
     for stretch in (0.0005, 0.05, 0.2, 0.4):
         explicit = tg.unit_ce_velocity(stretch, 0.3, 0.3, PF)
