@@ -481,22 +481,19 @@ def _body_ros2(body_arrays, t, y, h, b, y_new, stats, body):
     jac = body_arrays[4]
     m = unit_states_start(n)
     gh = ROS2_GAMMA * h
-    for i in range(m):
-        b[_STAGE, i] = y[i]
-    for j in range(n):
-        b[_TORQUE, j] = b[_TORQUE0, j]
-    _body_stage_rates(body_arrays, t, h, b, _K1, stats, body, True)
-    _linearise_body(body_arrays, b, body)
-    _factor_iteration_matrix(n, gh, jac)
-    _solve_stage(n, gh, body_arrays[1], jac, b, _K1)
-    for i in range(m):
-        b[_STAGE, i] = y[i] + h * b[_K1, i]
-    for j in range(n):
-        b[_TORQUE, j] = b[_TORQUE0, j] + b[_TORQUE_SLOPE, j]
-    _body_stage_rates(body_arrays, t, h, b, _K2, stats, body, False)
-    for i in range(m):
-        b[_K2, i] -= 2.0 * b[_K1, i]
-    _solve_stage(n, gh, body_arrays[1], jac, b, _K2)
+    for s in range(2):  # (one call of the inlined rates: each call site compiles a copy)
+        for i in range(m):
+            b[_STAGE, i] = y[i] + h * b[_K1, i] if s == 1 else y[i]
+        for j in range(n):
+            b[_TORQUE, j] = b[_TORQUE0, j] + b[_TORQUE_SLOPE, j] if s == 1 else b[_TORQUE0, j]
+        _body_stage_rates(body_arrays, t, h, b, _K1 + s, stats, body, s == 0)
+        if s == 0:
+            _linearise_body(body_arrays, b, body)
+            _factor_iteration_matrix(n, gh, jac)
+        else:
+            for i in range(m):
+                b[_K2, i] -= 2.0 * b[_K1, i]
+        _solve_stage(n, gh, body_arrays[1], jac, b, _K1 + s)
     for i in range(m):
         y_new[i] = y[i] + h * (1.5 * b[_K1, i] + 0.5 * b[_K2, i])
     stats[BODY_JACOBIANS] += 1
