@@ -92,9 +92,9 @@ from .sdirk import unit_implicit_ce_velocity
 # Indices of the stats array returned by the loops.
 # NEWTON_ITERATIONS: residual evaluations of the implicit unit equations (each one a Newton
 # iteration with its scalar linear solve, or the eccentric clamp's check where the iteration
-# needs it); IMPLICIT_SOLVES: implicit stage equations solved. COUPLING_*: the coupling-error indicator of the partitioned loop (see
-# rk4_partitioned): Σ over steps of max_j |δτ_j|·h (N·m·s), its largest term's |δτ| (N·m) and
-# time (s), and Σ over steps of max_j |δq_j| (rad).
+# needs it); IMPLICIT_SOLVES: implicit stage equations solved. COUPLING_*: the coupling-error
+# indicator of the partitioned loop (see rk4_partitioned): Σ over steps of max_j |δτ_j|·h
+# (N·m·s), its largest term's |δτ| (N·m) and time (s), and Σ over steps of max_j |δq_j| (rad).
 # CONTACT_*: the stability guard of the ground contacts (explicit in the body part's RK4):
 # the largest step/τ of a contact (`contact_time_constant`), its time and contact index.
 # BODY_JACOBIANS: linearisations of the body's stiff forces, each with the factorisation of

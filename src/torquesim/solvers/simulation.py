@@ -112,9 +112,10 @@ def simulate(
         (their error control can pass a run that is far off: the explicit ones at loose
         tolerances on stiff units, tests/test_wrong_numbers.py). Fixed-step runs: estimate
         the max angle error by Richardson extrapolation against a run at twice the step (half
-        a run's work) and, when that exceeds the tolerance, against a run at half the step (error ≈ max|q_h − q_h/2|·2^p/(2^p − 1), p the
-        technique's order, `nominal_order`), and warn (``result.message``) when it
-        exceeds ``tolerance`` (rad). Default 0.5°; None turns the check off. The estimate is
+        a run's work) and, when that exceeds the tolerance, against a run at half the step
+        (error ≈ max|q_h − q_h/2|·2^p/(2^p − 1), p the technique's order, `nominal_order`),
+        and warn (``result.message``) when it exceeds ``tolerance`` (rad). Default 0.5°; None
+        turns the check off. The estimate is
         in ``result.settings["estimated_error_rad"]``.
     """
     model = as_chain(default_model() if model is None else model)
