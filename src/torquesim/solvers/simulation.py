@@ -490,8 +490,9 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
             try:
                 message = solver.step() or ""
             except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
-                # SciPy raises, not fails, on a Jacobian or an LU of a non-finite state
-                if isinstance(error, ValueError) and "infs or nans" not in str(error).lower():
+                # SciPy raises, not fails, on a Jacobian or an LU of a non-finite state (any
+                # other ValueError is not the run's: it propagates)
+                if type(error) is ValueError and "infs or nans" not in str(error).lower():
                     raise
                 message = f"the state went non-finite ({error})"
                 break
