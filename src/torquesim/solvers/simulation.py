@@ -395,24 +395,33 @@ def _with_error_estimate(result, model, packed, y0, method, coupling, tolerance)
         estimate = (_max_difference(result, half) * 2**p / (2**p - 1) if half.success
                     else math.inf)
         how = "step halving"
+    if not estimate > tolerance:
+        advice = ""
+    elif result.stability.verified_step is not None:  # the stability advice stands
+        advice = "follow the stability advice above"
+    elif math.isfinite(estimate):
+        shrink = (tolerance / estimate) ** (1.0 / p)
+        advice = f"a step ≤ {result.step * shrink * 1e3:.3g} ms should meet it (order {p})"
+    else:
+        advice = "use a smaller step or method 'reference'"
+    if advice and not runs_monolithic(method) and not coupling.implicit_muscles:
+        advice += ", or method 'imex'"
+    return _with_estimate(result, estimate, tolerance, how, advice,
+                          "the run at half the step failed")
+
+
+def _with_estimate(result, estimate, tolerance, how, advice, unavailable):
+    """``result`` with its estimated max angle error ``estimate`` (rad; made by ``how``) in
+    its settings and, above ``tolerance`` (rad), a warning ending in ``advice``;
+    ``unavailable`` says why an infinite estimate is none (its run failed)."""
     settings = {**result.settings, "estimated_error_rad": estimate, "tolerance_rad": tolerance,
                 "error_estimate": how}
     message = result.message
     if estimate > tolerance:
-        shrink = (tolerance / estimate) ** (1.0 / p) if math.isfinite(estimate) else 0.0
-        if result.stability.verified_step is not None:  # the stability advice stands
-            advice = "follow the stability advice above"
-        elif shrink > 0:
-            advice = f"a step ≤ {result.step * shrink * 1e3:.3g} ms should meet it (order {p})"
-        else:
-            advice = "use a smaller step or method 'reference'"
-        if not runs_monolithic(method) and not coupling.implicit_muscles:
-            advice += ", or method 'imex'"
         warning = (f"estimated max angle error {math.degrees(estimate):.3g}° ({how}) "
                    f"exceeds the tolerance {math.degrees(tolerance):.3g}°: {advice}"
                    if math.isfinite(estimate) else
-                   f"the run at half the step failed, so no error estimate stands for this "
-                   f"run: {advice}")
+                   f"{unavailable}, so no error estimate stands for this run: {advice}")
         message = f"{message} Also: {warning}" if message else warning
     return replace(result, settings=settings, message=message)
 
@@ -448,18 +457,11 @@ def _with_tighter_estimate(result, model, packed, y0, method, name, tolerance):
     estimate = float(np.max(np.abs(result.q[:n] - tight.q[:n]))) \
         if tight.success else math.inf
     how = f"against rtol and atol {TIGHTER:g}x tighter"
-    settings = {**result.settings, "estimated_error_rad": estimate, "tolerance_rad": tolerance,
-                "error_estimate": how}
-    message = result.message
-    if estimate > tolerance:
-        explicit = "" if name in ("Radau", "BDF", "LSODA") else \
-            " (an explicit solver: on stiff units or contacts use scipy:Radau or scipy:BDF)"
-        what = (f"estimated max angle error {math.degrees(estimate):.3g}° ({how}) exceeds "
-                f"the tolerance {math.degrees(tolerance):.3g}°" if math.isfinite(estimate)
-                else f"the run {how} failed, so no error estimate stands for this run")
-        warning = f"{what}: use smaller rtol and atol{explicit}, or method 'reference'"
-        message = f"{message} Also: {warning}" if message else warning
-    return replace(result, settings=settings, message=message)
+    explicit = "" if name in ("Radau", "BDF", "LSODA") else \
+        " (an explicit solver: on stiff units or contacts use scipy:Radau or scipy:BDF)"
+    return _with_estimate(result, estimate, tolerance, how,
+                          f"use smaller rtol and atol{explicit}, or method 'reference'",
+                          f"the run {how} failed")
 
 
 def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> SimulationResult:

@@ -2,8 +2,7 @@
 
 Every fixed-step technique — monolithic RK4, IMEX, IMEX with the body on ROS2, and every
 coupling variant of the partitioned technique (order × predictor × iterations × muscle
-solver) — at a range of steps,
-simulated with `simulate`'s default arguments and compared
+solver) — at a range of steps, simulated with `simulate`'s default arguments and compared
 with a Radau reference. A run more than `WRONG_RAD` off must carry a warning (or be
 refused); a warning on a run within `RIGHT_RAD` is a false alarm.
 """
