@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 
 import torquesim as ts
 from torquesim.model import torque_generator as tg
+from torquesim.model.unit_row import UNIT_DIRECTION, UNIT_ROW_SIZE
+from torquesim.solvers.rates import unit_rates
 from torquesim.solvers.sdirk import unit_implicit_ce_velocity
 
 FLEXOR = ts.TorqueGeneratorUnit.flexor_default()
@@ -142,10 +144,16 @@ def test_time_constant_is_the_linearised_rate(omega, p):
                                                          st.just(math.nan)))
 def test_guard_time_constant_from_the_root_finder_is_the_closed_form(stretch, theta_cc, a,
                                                                      unit, guess):
-    """The stability guard takes τ from the slope the root finder ends with: it must be the
-    closed-form τ at the returned CE velocity (inf where the velocity is clamped)."""
+    """The stability guard takes τ from the slope the root finder ends with (`unit_rates`,
+    the loops' unit rates): it must be the closed-form τ at the returned CE velocity (inf
+    where the velocity is clamped)."""
     p = (PF, PE, PF_DAMPED)[unit]
-    w, tau = tg.unit_ce_velocity_and_time_constant(stretch, theta_cc, a, p, guess)
+    row = np.zeros(UNIT_ROW_SIZE)  # a flexor on joint 0, θ_cc at y[2], no dynamics
+    row[:p.shape[0]] = p
+    row[UNIT_DIRECTION] = 1.0
+    y = np.array([0.0, 0.0, theta_cc])
+    rate, _, w, tau = unit_rates(theta_cc - stretch, y, 2, a, guess, row, 0, None)
+    assert rate == w
     assert w == pytest.approx(tg.unit_ce_velocity(stretch, theta_cc, a, p), rel=1e-12,
                               abs=1e-12)
     if abs(w) == p[tg.OMEGA_MAX] and math.isfinite(tau):

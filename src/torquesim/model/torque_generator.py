@@ -504,13 +504,12 @@ def unit_ce_velocity(stretch, theta_cc, activation, p, guess=np.nan, o=0):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_ce_velocity_and_time_constant(stretch, theta_cc, activation, p, guess, o=0):
-    """(ω_cc, τ): `unit_ce_velocity` and the unit's time constant τ (s, as
-    `unit_time_constant`) from the slope the root finder ends with: with
-    f' = h'(ω_cc) − β/(a·T_θ), τ = a·T_θ·|f'|/k = (a·T_θ·|h'| + β)/k. No extra evaluation."""
-    capacity, target, damping = ce_equation(stretch, theta_cc, activation, p, o)
-    w, slope = ce_velocity_and_slope(target, p, guess, damping, o)
-    return w, capacity * abs(slope) / p[o + K_SE]
+def ce_time_constant(capacity, slope, p, o=0):
+    """The unit's time constant τ (s, as `unit_time_constant`) from what its CE equation's
+    root finder ends with: the capacity a·T_θ (`ce_equation`) and the slope
+    f' = h'(ω_cc) − β/(a·T_θ) (`ce_velocity_and_slope`): τ = a·T_θ·|f'|/k =
+    (a·T_θ·|h'| + β)/k, inf where ω_cc is clamped. No extra evaluation."""
+    return capacity * abs(slope) / p[o + K_SE]
 
 
 @njit(cache=True, error_model="numpy")

@@ -219,15 +219,6 @@ def check_body(joints, seg, body):
             raise ValueError("tree must be True exactly for a body that is not a serial chain")
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _general_accelerations(y, n, torque, seg, joints, work, dy, row, body):
-    """q̈ of a body of two or more coordinates into dy[row, n:2n] (the general mass-matrix
-    solve, `tree_accelerations`, inlined) of the `BodyKinds` ``body``."""
-    tree_accelerations(y, n, body, torque, seg, joints, work)
-    for k in range(n):
-        dy[row, n + k] = work[n * n + k]
-
-
 @njit(cache=True, error_model="numpy")
 def rk4_monolithic(system, y0, h, n_steps, out, stats, body, dynamics):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2) of the
@@ -299,7 +290,9 @@ def rk4_monolithic(system, y0, h, n_steps, out, stats, body, dynamics):
             for j in range(n):
                 k[s, j] = stage[n + j]
             if body is not None:
-                _general_accelerations(stage, n, torque, seg, joints, work, k, s, body)
+                tree_accelerations(stage, n, body, torque, seg, joints, work)
+                for j in range(n):
+                    k[s, n + j] = work[n * n + j]
                 if s == 0 and contacts:
                     _record_contacts(stats, t, h, stage, n, seg, work, body.free_base)
             else:
@@ -343,7 +336,10 @@ def _body_rk4(body_arrays, t, y, h, b, y_new, stats, body):
         for j in range(n):
             b[_TORQUE, j] = b[_TORQUE0, j] + fraction * b[_TORQUE_SLOPE, j] if s > 0 \
                 else b[_TORQUE0, j]
-        _body_stage_rates(body_arrays, t, h, b, _K1 + s, stats, body, s == 0)
+        if body is None:
+            _pivot_stage_rates(body_arrays, b, _K1 + s)
+        else:
+            _body_stage_rates(body_arrays, t, h, b, _K1 + s, stats, body, s == 0)
     for i in range(m):
         y_new[i] = y[i] + rk4_increment(b[_K1, i], b[_K2, i], b[_K3, i], b[_K4, i], h)
 
@@ -353,16 +349,25 @@ def _body_stage_rates(body_arrays, t, h, b, row, stats, body, at_start):
     """The body part's rates at the state b[_STAGE] with the joint torques b[_TORQUE] into
     b[row, :2n] (q̇, q̈), for both body solvers; ``at_start`` (the step's first stage, time
     t): the contacts' time constant into the guard too (it leaves the factorisation of M and
-    the contacts' forces in the work array)."""
+    the contacts' forces in the work array). ``body`` None (one segment on a fixed pivot)
+    is `_pivot_stage_rates`: the solvers branch on it themselves, so that Numba prunes the
+    general solve there before inlining it (`check_body`)."""
     n, seg, joints, work, _ = body_arrays
     for j in range(n):
         b[row, j] = b[_STAGE, n + j]
-    if body is not None:
-        _general_accelerations(b[_STAGE], n, b[_TORQUE], seg, joints, work, b, row, body)
-        if at_start and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
-            _record_contacts(stats, t, h, b[_STAGE], n, seg, work, body.free_base)
-    else:
-        b[row, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg, joints)
+    tree_accelerations(b[_STAGE], n, body, b[_TORQUE], seg, joints, work)
+    for k in range(n):
+        b[row, n + k] = work[n * n + k]
+    if at_start and seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN]):
+        _record_contacts(stats, t, h, b[_STAGE], n, seg, work, body.free_base)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _pivot_stage_rates(body_arrays, b, row):
+    """`_body_stage_rates` of one segment on a fixed pivot (q̇, q̈ into b[row, :2])."""
+    seg, joints = body_arrays[1], body_arrays[2]
+    b[row, 0] = b[_STAGE, 1]
+    b[row, 1] = single_segment_acceleration(b[_STAGE, 0], b[_TORQUE, 0], seg, joints)
 
 
 @njit(cache=True, error_model="numpy")
@@ -486,7 +491,10 @@ def _body_ros2(body_arrays, t, y, h, b, y_new, stats, body):
             b[_STAGE, i] = y[i] + h * b[_K1, i] if s == 1 else y[i]
         for j in range(n):
             b[_TORQUE, j] = b[_TORQUE0, j] + b[_TORQUE_SLOPE, j] if s == 1 else b[_TORQUE0, j]
-        _body_stage_rates(body_arrays, t, h, b, _K1 + s, stats, body, s == 0)
+        if body is None:
+            _pivot_stage_rates(body_arrays, b, _K1 + s)
+        else:
+            _body_stage_rates(body_arrays, t, h, b, _K1 + s, stats, body, s == 0)
         if s == 0:
             _linearise_body(body_arrays, b, body)
             _factor_iteration_matrix(n, gh, jac)
@@ -600,6 +608,28 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
 
 
 @njit(cache=True, error_model="numpy")
+def _muscles_at_step_start(muscles, t, y, hm, b, stats, dynamics):
+    """The units at the step start (time t, state y): their joint torques into b[_TORQUE0],
+    their rates into b[_RATE] and CE velocities into b[_OMEGA] (the muscle part's first
+    explicit stage and the seeds of its root finders), their step/τ into the guard."""
+    n, nu, width, units, profiles = muscles
+    for j in range(n):
+        b[_TORQUE0, j] = 0.0
+    for u in range(nu):
+        i = unit_state(n, units, u)
+        psi = unit_angle_at(y, units, u)
+        add_unit_torque(b[_TORQUE0], psi, y[i], units, u)
+        b[_RATE, i], level_rate, b[_OMEGA, u], tau = unit_rates(
+            psi, y, i, unit_excitation(t, profiles, width, u), b[_OMEGA, u], units, u,
+            dynamics)
+        if dynamics is not None:
+            if has_activation_state(units, u):
+                b[_RATE, i + 1] = level_rate
+        _record_stiffness(stats, t, hm / tau, u)
+    stats[NFEV_MUSCLE] += 1
+
+
+@njit(cache=True, error_model="numpy")
 def rk4_partitioned(system, h, n_steps, coupling, out, stats, body, dynamics, implicit_muscles,
                     implicit_body):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
@@ -648,20 +678,7 @@ def rk4_partitioned(system, h, n_steps, coupling, out, stats, body, dynamics, im
     hm = h / substeps
     for step in range(n_steps):
         t = step * h
-        for j in range(n):
-            b[_TORQUE0, j] = 0.0
-        for u in range(nu):
-            i = unit_state(n, units, u)
-            psi = unit_angle_at(y, units, u)
-            add_unit_torque(b[_TORQUE0], psi, y[i], units, u)
-            b[_RATE, i], level_rate, b[_OMEGA, u], tau = unit_rates(
-                psi, y, i, unit_excitation(t, profiles, width, u), b[_OMEGA, u], units, u,
-                dynamics)
-            if dynamics is not None:
-                if has_activation_state(units, u):
-                    b[_RATE, i + 1] = level_rate
-            _record_stiffness(stats, t, hm / tau, u)
-        stats[NFEV_MUSCLE] += 1
+        _muscles_at_step_start(muscles, t, y, hm, b, stats, dynamics)
         for j in range(n):
             if predictor == LINEAR and step > 0:
                 b[_Q_SLOPE, j] = y[j] - q_prev[j]

@@ -37,7 +37,12 @@ from ..model.body import (
     single_segment_acceleration,
 )
 from ..model.state import has_activation_state, unit_state
-from ..model.torque_generator import unit_ce_velocity_and_time_constant, unit_torque
+from ..model.torque_generator import (
+    ce_equation,
+    ce_time_constant,
+    ce_velocity_and_slope,
+    unit_torque,
+)
 from ..model.unit_row import (
     UNIT_ACTIVATION_TIME,
     UNIT_DEACTIVATION_TIME,
@@ -120,8 +125,12 @@ def unit_rates(psi, y, i, excitation, guess, units, u, dynamics):
     o = u * UNIT_ROW_SIZE
     theta_cc = y[i]
     level = excitation if dynamics is None else unit_level(excitation, y, i, units, u)
-    w, tau = unit_ce_velocity_and_time_constant(unit_stretch(psi, theta_cc, units, u),
-                                                theta_cc, level, units, guess, o)
+    # The model's three pieces called here, not through one inlined wrapper: each level of
+    # inlining copies the root finder's code again while compiling (every step loop).
+    capacity, target, damping = ce_equation(unit_stretch(psi, theta_cc, units, u), theta_cc,
+                                            level, units, o)
+    w, slope = ce_velocity_and_slope(target, units, guess, damping, o)
+    tau = ce_time_constant(capacity, slope, units, o)
     level_rate = 0.0
     if dynamics is not None:
         if has_activation_state(units, u):
