@@ -152,7 +152,9 @@ def test_guard_time_constant_from_the_root_finder_is_the_closed_form(stretch, th
     row[:p.shape[0]] = p
     row[UNIT_DIRECTION] = 1.0
     y = np.array([0.0, 0.0, theta_cc])
-    rate, _, w, tau = unit_rates(theta_cc - stretch, y, 2, a, guess, row, 0, None)
+    psi = theta_cc - stretch
+    stretch = theta_cc - psi  # the stretch unit_rates sees (d = 1), rounded as it is
+    rate, _, w, tau = unit_rates(psi, y, 2, a, guess, row, 0, None)
     assert rate == w
     assert w == pytest.approx(tg.unit_ce_velocity(stretch, theta_cc, a, p), rel=1e-12,
                               abs=1e-12)
