@@ -75,3 +75,50 @@ def test_every_model_function_is_compiled_once(compiled):
             for signature in signatures:
                 assert not any("Literal" in t or "omitted" in t for t in signature), \
                     (module, name, signature)
+
+
+def test_the_collector_is_paused_while_numba_compiles_and_restored_after():
+    """`torquesim.model.jit`: the garbage collector is off during a compilation (nested ones
+    included), on again after it (also when typing fails), and left off if it was off."""
+    import gc
+
+    import numpy as np
+    from numba.core import event
+
+    from torquesim.model.jit import njit
+
+    seen = []
+
+    class Record(event.Listener):
+        def on_start(self, _event):
+            seen.append(gc.isenabled())
+
+        def on_end(self, _event):
+            pass
+
+    @njit
+    def inner(x):
+        return x + 1.0
+
+    @njit
+    def outer(x):
+        return inner(x) * 2.0
+
+    @njit
+    def untypable(x):
+        return x.no_such_attribute
+
+    assert gc.isenabled()
+    with event.install_listener("numba:compile", Record()):
+        assert outer(1.0) == 4.0
+        assert seen == [False, False]  # outer, then inner while outer compiles
+        assert gc.isenabled()
+        with pytest.raises(Exception, match="no_such_attribute"):
+            untypable(np.zeros(2))
+        assert gc.isenabled()
+        gc.disable()
+        try:
+            assert inner(np.float32(1.0)) == 2.0
+            assert not gc.isenabled()
+        finally:
+            gc.enable()

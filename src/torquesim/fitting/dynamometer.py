@@ -7,10 +7,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from ..errors import check_range
 from ..io.dynamometer import DynamometerTrial
+from ..model.jit import njit
 from ..model.torque_generator import TorqueGeneratorUnit, unit_ce_velocity
 from .strength import NO_PASSIVE_TORQUE, PassiveTorque
 

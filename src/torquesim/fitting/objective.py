@@ -33,9 +33,9 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from numba import njit
 
 from ..model.body import GROUND_OUTPUTS, body_work_size, ground_kinds, ground_outputs
+from ..model.jit import njit
 from ..solvers import fixed_step as fs
 from ..solvers.rates import unit_excitation
 from .parameters import PER_UNIT, RAMPS_PER_UNIT

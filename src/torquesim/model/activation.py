@@ -15,9 +15,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ..errors import ModelError, check_range
+from .jit import njit
 
 
 @dataclass(frozen=True)

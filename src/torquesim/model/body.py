@@ -17,7 +17,6 @@ from dataclasses import asdict, dataclass, fields
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..errors import ModelError, check_range
 from .contact import (
@@ -28,6 +27,7 @@ from .contact import (
     contact_stiffness,
     friction_damping,
 )
+from .jit import njit
 
 # Layout of a packed end-stop array: the first columns of a chain joint's row
 # (torquesim.model.chain).

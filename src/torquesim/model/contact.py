@@ -18,9 +18,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ..errors import check_name, check_range
+from .jit import njit
 
 #: Columns of a packed contact row (`ChainModel.segment_array`, after the segment rows).
 (CONTACT_SEGMENT, CONTACT_DISTANCE, CONTACT_OFFSET, CONTACT_STIFFNESS, CONTACT_EXPONENT,

@@ -14,8 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from numba import njit
-
+from .jit import njit
 from .unit_row import UNIT_ACTIVATION_TIME, UNIT_ROW_SIZE, UNIT_STATE_OFFSET
 
 #: States per unit kind: θ_cc; θ_cc and a.

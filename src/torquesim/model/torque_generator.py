@@ -21,9 +21,9 @@ import math
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
-from numba import njit
 
 from ..errors import ModelError, check_range
+from .jit import njit
 
 # Layout of the packed unit parameter array.
 T0, T_MAX, OMEGA_MAX, OMEGA_C, SLOPE_RATIO, A_MIN, OMEGA_R, OMEGA_1 = range(8)

@@ -25,7 +25,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, types
+from numba import types
 from numba.extending import overload
 
 from ..model.activation import implicit_activation
@@ -49,6 +49,7 @@ from ..model.body import (
     switch,
     tree_accelerations,
 )
+from ..model.jit import njit
 from ..model.state import has_activation_state, unit_state, unit_states_start
 from ..model.unit_row import (
     UNIT_ACTIVATION_TIME,

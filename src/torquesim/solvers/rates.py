@@ -27,7 +27,6 @@ after another, ``profiles`` the activation rows of ``width``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..model.activation import activation, activation_rate, activation_time_constant
 from ..model.body import (
@@ -36,6 +35,7 @@ from ..model.body import (
     body_work_size,
     single_segment_acceleration,
 )
+from ..model.jit import njit
 from ..model.state import has_activation_state, unit_state
 from ..model.torque_generator import (
     ce_equation,

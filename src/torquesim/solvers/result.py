@@ -6,7 +6,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from ..model.body import (
     CONTACT_SLOTS,
@@ -19,6 +18,7 @@ from ..model.body import (
 )
 from ..model.chain import UNIT_ROW_SIZE, ChainModel, PackedChain
 from ..model.contact import take_off_index
+from ..model.jit import njit
 from ..model.state import unit_state
 from ..model.torque_generator import (
     ACTIVATION_FLOOR,

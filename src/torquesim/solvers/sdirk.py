@@ -7,8 +7,7 @@ scalar equation; the CE equation itself lives in `torquesim.model.torque_generat
 
 from __future__ import annotations
 
-from numba import njit
-
+from ..model.jit import njit
 from ..model.torque_generator import (
     ACTIVATION_FLOOR,
     CE_DAMPING,
