@@ -178,7 +178,8 @@ def test_sensitivity_to_se_stiffness_moves_tau_and_the_rk4_limit(sensitivity_stu
 
 def test_study_pages_fit_the_window_in_headless_chromium(sensitivity_study, tmp_path):
     """The report and the sensitivity page, opened in Chromium at 1280 and 800 px: no part
-    wider than the window, every figure decodes (scripts/check_pages.py)."""
+    wider than the window, every figure decodes (scripts/check_pages.py); a screenshot at
+    the first width (one Chromium run more per page) renders."""
     import importlib.util
     from pathlib import Path
 
@@ -191,10 +192,10 @@ def test_study_pages_fit_the_window_in_headless_chromium(sensitivity_study, tmp_
         pytest.skip("no Chromium on this machine (scripts/check_pages.py needs one)")
     out, _ = sensitivity_study
     for page in (out / "sensitivity.html", out / "se_stiffness=3000" / "report.html"):
-        for width in check_pages.WIDTHS:
-            shot = tmp_path / f"{page.stem}-{width}.png"
+        for k, width in enumerate(check_pages.WIDTHS):
+            shot = tmp_path / f"{page.stem}-{width}.png" if k == 0 else None
             assert check_pages.check_page(page, browser, width, shot) == "OK", (page, width)
-            assert shot.stat().st_size > 10_000
+            assert shot is None or shot.stat().st_size > 10_000
 
 
 def test_no_slope_is_claimed_where_the_error_sits_at_a_floor():
