@@ -612,7 +612,10 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
 def _muscles_at_step_start(muscles, t, y, hm, b, stats, dynamics):
     """The units at the step start (time t, state y): their joint torques into b[_TORQUE0],
     their rates into b[_RATE] and CE velocities into b[_OMEGA] (the muscle part's first
-    explicit stage and the seeds of its root finders), their step/τ into the guard."""
+    explicit stage and the seeds of its root finders), their step/τ into the guard. A
+    function of its own, called once a step: it is compiled once for each ``dynamics``
+    (`unit_rates`) and shared by every partitioned technique and body, where inlined in
+    `rk4_partitioned` each of the loop's kinds compiled the units' rates again."""
     n, nu, width, units, profiles = muscles
     for j in range(n):
         b[_TORQUE0, j] = 0.0
