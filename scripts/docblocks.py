@@ -20,7 +20,8 @@ BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)"
 #: Every generated block, by page (checked by ``scripts/make_docs.py --check`` in CI).
 PAGES = {
     "docs/study.md": {"study-verdict", "study-limits", "default-checks", "jump-verdict",
-                      "jump-limits", "jump-stiffness"},
+                      "jump-limits", "jump-stiffness", "landing-verdict", "landing-limits",
+                      "landing-stiffness"},
     "docs/validation.md": {"validation-figures", "validation-ground"},
     "docs/fitting.md": {"fit-benchmark", "jump-unseen"},
     "docs/optimise.md": {"optimise-benchmark"},
@@ -29,14 +30,14 @@ PAGES = {
     "docs/concepts.md": {"techniques"},
     "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",
                         "motion-squat-jump", "motion-countermovement-jump",
-                        "motion-squat-jump-biarticular"},
+                        "motion-squat-jump-biarticular", "motion-drop-landing"},
     "docs/model.md": {"contacts-squat-jump"},
     "README.md": {"test-suite"},
     "docs/index.md": {"test-suite"},
 }
 #: The presets whose motion `preset_motion_blocks` describes, in page order.
 MOTION_PRESETS = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump",
-                  "countermovement-jump", "squat-jump-biarticular")
+                  "countermovement-jump", "squat-jump-biarticular", "drop-landing")
 
 
 def techniques_block() -> str:
@@ -77,7 +78,9 @@ def preset_motion_blocks() -> dict[str, str]:
         model = ts.load_model(f"builtin:{name}")
         ground = model.base == "free"
         run = ts.simulate(model, "reference", output_step=1e-4 if ground else 1e-3)
-        if ground:
+        if ground and model.landing_speed:
+            text = _landing_text(model, run)
+        elif ground:
             e = run.ground_events()
             c = run.columns()
             i = int(np.searchsorted(run.time, e.take_off))
@@ -112,6 +115,26 @@ def preset_motion_blocks() -> dict[str, str]:
             text = f"Motion (Radau): {'; '.join(parts)}, in {model.duration:g} s."
         blocks[f"motion-{name}"] = text + "\n"
     return blocks
+
+
+def _landing_text(model, run) -> str:
+    """A landing's motion: the touchdown, the peak ground force, how far the centre of mass
+    sinks, the joints' swing, the end stops and whether the body stays on the ground."""
+    e = run.ground_events()
+    c = run.columns()
+    low = int(np.argmin(c["com_y"]))
+    stops = max(np.abs(c[f"torque_passive_{j.name}"]).max()
+                for j in model.joints if j.endstop_torque > 0)
+    parts = [f"{j.name} {_swing(run.time, run.q[:, k])}"
+             for k, j in enumerate(model.joints) if j.name != model.joints[0].name]
+    stays = "on the ground throughout" if np.all(c["grf_y"][1:] > 0.0) else \
+        "leaving the ground in between"
+    return (f"Motion (Radau): touchdown at {model.landing_speed:.2f} m/s; peak ground "
+            f"reaction force {e.peak_force:.0f} N ({e.peak_force / e.weight:.1f} body weights) "
+            f"at {1e3 * e.peak_time:.1f} ms; the centre of mass sinks "
+            f"{c['com_y'][0] - c['com_y'][low]:.3f} m, lowest at {run.time[low]:.3f} s; "
+            f"{'; '.join(parts)}; the largest end-stop torque {stops:.2f} N·m; {stays} to "
+            f"{model.duration:g} s.")
 
 
 def contact_blocks() -> dict[str, str]:

@@ -2,16 +2,20 @@
 
     python scripts/make_docs.py            # the study on the default curl, its sensitivity
                                            # to the SE stiffness, the default checks and the
-                                           # study on the squat jump (~45 min on 2 cores)
+                                           # studies on the squat jump and the drop
+                                           # landing (~45 min on 2 cores)
     python scripts/make_docs.py --check    # only check that every page holds its generated
                                            # blocks (scripts/docblocks.py), that the cheap
                                            # ones (techniques, presets' motions) are current
                                            # and that the optima of docs/optimise.md regenerate
                                            # within their stated spread (~1 min)
     python scripts/make_docs.py --jump     # only the study on the squat jump (~25 min)
+    python scripts/make_docs.py --landing  # only the study on the drop landing (~1 min)
     python scripts/make_docs.py --curl     # the curl's study and sensitivity, not the jump
+                                           # nor the landing
     python scripts/make_docs.py --presets  # only the presets' motions (docs/presets.md), their
-                                           # conventions figures and the jumps' result figures
+                                           # conventions figures and the result figures of
+                                           # the bodies on the ground
 
 Runs ``torquesim compare`` on the default curl into a temporary folder, copies its figures to
 ``docs/figures/`` and rewrites the blocks of ``docs/study.md`` between
@@ -44,10 +48,11 @@ from docblocks import (  # noqa: E402  (scripts/)
 )
 
 FIGURES = ("convergence.png", "work_precision.png", "time_constants.png")
-#: The study on the squat jump: its steps (the duration 0.55 s is a multiple of each) and
-#: the figures kept, renamed with a ``jump_`` prefix.
-JUMP_STEPS = ("--steps", "5,2.5,1,0.5,0.25,0.1,0.05,0.025")
-JUMP_FIGURES = ("work_precision.png", "time_constants.png")
+#: The studies on the squat jump and the drop landing: their steps (the durations 0.55 s and
+#: 0.3 s are multiples of each) and the figures kept, renamed with a ``jump_`` or
+#: ``landing_`` prefix (`GROUND_STUDIES`).
+GROUND_STEPS = ("--steps", "5,2.5,1,0.5,0.25,0.1,0.05,0.025")
+GROUND_FIGURES = ("work_precision.png", "time_constants.png")
 #: The sensitivity figure: ``compare --vary`` of the SE stiffness.
 SENSITIVITY = ("--vary", "se_stiffness=200,600,3000")
 
@@ -146,15 +151,16 @@ def checks_block() -> str:
             f"{datetime.now(UTC).date()}, `python scripts/accuracy_checks.py` lists them).\n")
 
 
-def stiffness_block() -> str:
-    """Which part of the squat jump is stiff: the smallest time constant of its units and of
-    its ground contacts over a monolithic run at 25 µs, and the RK4 step limit each sets."""
+def stiffness_block(preset: str, what: str) -> str:
+    """Which part of a body on the ground is stiff: the smallest time constant of its units
+    and of its ground contacts over a monolithic run at 25 µs, and the RK4 step limit each
+    sets. ``what`` names the motion in the text ("the jump")."""
     import torquesim as ts
     from torquesim.solvers.fixed_step import RK4_STABILITY_LIMIT
 
-    run = ts.simulate(ts.load_model("builtin:squat-jump"), "monolithic", 2.5e-5)
+    run = ts.simulate(ts.load_model(f"builtin:{preset}"), "monolithic", 2.5e-5)
     unit, contact = (run.settings[f"{k}_time_constant_min_s"] for k in ("unit", "contact"))
-    return (f"Over the jump (monolithic RK4, 25 µs) the units' smallest time constant is "
+    return (f"Over {what} (monolithic RK4, 25 µs) the units' smallest time constant is "
             f"{unit * 1e3:.3g} ms (RK4 stable for h ≤ {RK4_STABILITY_LIMIT * unit * 1e3:.3g} "
             f"ms) and the ground contacts' {contact * 1e3:.3g} ms (h ≤ "
             f"{RK4_STABILITY_LIMIT * contact * 1e3:.3g} ms): the muscle part is still the stiff "
@@ -164,20 +170,27 @@ def stiffness_block() -> str:
             f"implicitly (measured {datetime.now(UTC).date()}).\n")
 
 
-def jump_blocks(torquesim, tmp: Path) -> dict[str, str]:
-    """The study on the squat jump: its verdict, limits and stiffness blocks; copies its
-    figures to docs/figures/jump_*.png."""
-    folder = tmp / "jump"
-    code = torquesim(["compare", "--model", "builtin:squat-jump", *JUMP_STEPS, "--out",
+#: The studies on a body on the ground: preset → (block and figure prefix, the motion in
+#: words). Their steps (`GROUND_STEPS`) divide each preset's duration.
+GROUND_STUDIES = {"squat-jump": ("jump", "the jump"),
+                  "drop-landing": ("landing", "the landing")}
+
+
+def ground_blocks(torquesim, tmp: Path, preset: str) -> dict[str, str]:
+    """The study on a body on the ground (`GROUND_STUDIES`): its verdict, limits and
+    stiffness blocks; copies its figures to docs/figures/<prefix>_*.png."""
+    prefix, what = GROUND_STUDIES[preset]
+    folder = tmp / prefix
+    code = torquesim(["compare", "--model", f"builtin:{preset}", *GROUND_STEPS, "--out",
                       str(folder), "--quiet"])
     if code:
-        sys.exit(f"torquesim compare on the jump failed (exit {code})")
+        sys.exit(f"torquesim compare on builtin:{preset} failed (exit {code})")
     manifest = json.loads((folder / "manifest.json").read_text())
-    for name in JUMP_FIGURES:
-        shutil.copyfile(folder / name, ROOT / "docs" / "figures" / f"jump_{name}")
-    return {"jump-verdict": verdict_block(folder, manifest),
-            "jump-limits": limits_block(folder, manifest, "jump"),
-            "jump-stiffness": stiffness_block()}
+    for name in GROUND_FIGURES:
+        shutil.copyfile(folder / name, ROOT / "docs" / "figures" / f"{prefix}_{name}")
+    return {f"{prefix}-verdict": verdict_block(folder, manifest),
+            f"{prefix}-limits": limits_block(folder, manifest, prefix),
+            f"{prefix}-stiffness": stiffness_block(preset, what)}
 
 
 #: Slack around the stated spread of an optimum, relative (the spread is measured with the
@@ -222,19 +235,22 @@ def conventions_figures() -> None:
         print(f"wrote {path.relative_to(ROOT)}")
 
 
-#: The jumps drawn as `simulate --plot` draws them, with the technique and step the tutorial
-#: uses (IMEX, 0.25 ms).
-JUMP_FIGURES_OF = ("squat-jump", "countermovement-jump")
+#: The bodies on the ground drawn as `simulate --plot` draws them, each with the technique
+#: and step its page names: the tutorial's IMEX at 0.25 ms for the jumps, imex-ros2 for the
+#: landing (its impact holds IMEX below 0.1 ms; docs/study.md).
+RESULT_FIGURES_OF = {"squat-jump": "imex", "countermovement-jump": "imex",
+                     "drop-landing": "imex-ros2"}
 
 
-def jump_figures() -> None:
-    """docs/figures/result_<jump>.png: each jump as ``torquesim simulate --model builtin:NAME
-    --method imex --step 0.25ms --plot`` draws it (strobe, forces, centre of mass, joints)."""
+def result_figures() -> None:
+    """docs/figures/result_<name>.png: each of `RESULT_FIGURES_OF` as ``torquesim simulate
+    --model builtin:NAME --method METHOD --step 0.25ms --plot`` draws it (strobe, forces,
+    centre of mass, joints)."""
     import torquesim as ts
     from torquesim.plots import plot_result, save_figure
 
-    for name in JUMP_FIGURES_OF:
-        run = ts.simulate(ts.load_model(f"builtin:{name}"), "imex", 0.25e-3)
+    for name, method in RESULT_FIGURES_OF.items():
+        run = ts.simulate(ts.load_model(f"builtin:{name}"), method, 0.25e-3)
         path = ROOT / "docs" / "figures" / f"result_{name.replace('-', '_')}.png"
         save_figure(plot_result(run), path)
         print(f"wrote {path.relative_to(ROOT)}")
@@ -249,12 +265,14 @@ def main() -> None:
                         help="only rewrite the techniques table of docs/concepts.md")
     parser.add_argument("--jump", action="store_true",
                         help="only the study on the squat jump")
+    parser.add_argument("--landing", action="store_true",
+                        help="only the study on the drop landing")
     parser.add_argument("--curl", action="store_true",
                         help="the curl's study, its sensitivity and the default checks, not "
-                             "the jump")
+                             "the jump nor the landing")
     parser.add_argument("--presets", action="store_true",
                         help="only the presets' motions of docs/presets.md, their conventions "
-                             "figures and the jumps' result figures")
+                             "figures and the result figures of the bodies on the ground")
     args = parser.parse_args()
     problems = missing_blocks()
     if problems:
@@ -286,15 +304,18 @@ def main() -> None:
             sys.exit("\n".join(problems))
     if args.presets:
         conventions_figures()
-        jump_figures()
+        result_figures()
     if args.check or args.presets:
         return
     from torquesim.cli import main as torquesim
 
-    if args.jump:
-        with tempfile.TemporaryDirectory() as tmp:
-            write_blocks("docs/study.md", jump_blocks(torquesim, Path(tmp)))
-        print("wrote the jump blocks of docs/study.md and docs/figures/jump_*.png")
+    only = [p for p, flag in (("squat-jump", args.jump), ("drop-landing", args.landing)) if flag]
+    if only:
+        for preset in only:
+            with tempfile.TemporaryDirectory() as tmp:
+                write_blocks("docs/study.md", ground_blocks(torquesim, Path(tmp), preset))
+            prefix = GROUND_STUDIES[preset][0]
+            print(f"wrote the {prefix} blocks of docs/study.md and docs/figures/{prefix}_*.png")
         return
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "compare"
@@ -313,7 +334,8 @@ def main() -> None:
             sys.exit(f"torquesim compare --vary failed (exit {code})")
         shutil.copyfile(vary / "sensitivity.png", ROOT / "docs" / "figures" / "sensitivity.png")
         if not args.curl:
-            blocks.update(jump_blocks(torquesim, Path(tmp)))
+            for preset in GROUND_STUDIES:
+                blocks.update(ground_blocks(torquesim, Path(tmp), preset))
     write_blocks("docs/study.md", blocks)
     print(f"wrote docs/figures/{{{','.join((*FIGURES, 'sensitivity.png'))}}}")
 

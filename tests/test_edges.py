@@ -141,10 +141,16 @@ def _stop_at(monkeypatch, module, name, check):
 @pytest.mark.parametrize("preset", list(PRESETS))
 def test_every_preset_is_a_start_fit_and_optimise_take_as_it_is(preset):
     """Every unit of every preset has at most the 3 ramps a fit and an optimisation vary, so
-    both start from the preset's own activations (padding with held ramps changes none)."""
+    both start from the preset's own activations (padding with held ramps changes none),
+    and those ramps lie within the fit's default bounds (a 30 ms ramp was clipped to 50 ms:
+    the drop landing's fit then started 9.8° off its own motion)."""
+    from torquesim.fitting.parameters import ParameterSpace, own_vector
     from torquesim.optimisation.problem import three_ramps
 
     model = ts.load_model(f"builtin:{preset}")
+    own = own_vector(model)
+    space = ParameterSpace.for_model(model)
+    assert np.array_equal(space.clip(own), own)
     padded = three_ramps(model)
     levels = model.initial_state().levels
     t = np.linspace(0.0, model.duration, 201)

@@ -378,10 +378,61 @@ def test_a_passive_body_dropped_loses_energy_only_in_the_contacts():
     assert np.max(np.abs(energy + dissipated - energy[0])) < 1e-4 * energy[0]
 
 
-def test_squat_jump_file_round_trip():
-    model = ts.load_model("builtin:squat-jump")
+@pytest.mark.parametrize("name", ["squat-jump", "drop-landing"])
+def test_ground_model_file_round_trip(name):
+    model = ts.load_model(f"builtin:{name}")
     text = model_to_toml(model)
     assert model_from_dict(tomllib.loads(text)) == model
+    assert ("landing_speed" in text) == bool(model.landing_speed)
+
+
+def test_the_drop_landing_starts_at_touchdown_and_absorbs_the_fall():
+    """The drop landing (`landing_speed`): at t = 0 the standing posture and unit states,
+    lifted so that the lowest contact point is at the ground with no force yet, every point
+    moving down at 2.43 m/s; then an impact of several body weights, the knee flexing to
+    30-70°, no bounce, no end stop above 5 % of its joint's peak muscle torque, the body
+    nearly still at the end. The start is checked against the standing model's own state."""
+    model = ts.load_model("builtin:drop-landing")
+    start = model.initial_state().state
+    standing = model.replace(landing_speed=0.0).initial_state().state
+    layout = model.layout
+    assert model.landing_speed == pytest.approx(math.sqrt(2 * G * 0.3), abs=0.01)
+    lift = start - standing
+    assert lift[1] > 0.0
+    lift[1] = 0.0
+    lift[layout.coordinate_speeds.start + 1] += model.landing_speed
+    assert np.max(np.abs(lift)) == 0.0  # only the height and the vertical speed differ
+    where = model.kinematics(start[layout.coordinates], start[layout.coordinate_speeds])
+    contact_y = where["points"][[p.name for p in model.points].index("toe"), 1], \
+        where["points"][[p.name for p in model.points].index("heel"), 1]
+    assert min(contact_y) == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(where["point_velocities"][:, 1], -model.landing_speed,
+                               rtol=1e-12)
+    run = ts.simulate(model, "imex-ros2", 2.5e-4, tolerance=None)
+    c = run.columns()
+    assert c["grf_y"][0] == 0.0 and np.all(c["grf_y"][1:] > 0.0)  # lands, never leaves
+    assert c["grf_y"].max() > 5.0 * model.weight
+    assert 30.0 < math.degrees(c["knee_angle"].max()) < 70.0
+    for joint in model.joints[1:]:
+        passive = np.abs(c[f"torque_passive_{joint.name}"]).max()
+        assert passive <= 0.05 * np.abs(c[f"torque_net_{joint.name}"]).max(), joint.name
+    assert abs(c["com_speed_y"][-1]) < 0.3 and abs(c["com_speed_x"][-1]) < 0.3
+    events = run.ground_events()
+    assert events.landing == 0.0 and events.take_off is None
+    assert events.sink == pytest.approx(c["com_y"][0] - c["com_y"].min())
+    assert any(line.startswith("touchdown") for line in events.summary_lines())
+
+
+@pytest.mark.parametrize("change, match", [
+    (dict(landing_speed=-1.0), r"landing_speed.*\[0, 10\] m/s"),
+    (dict(landing_speed=20.0), r"landing_speed.*\[0, 10\] m/s"),
+])
+def test_bad_landing_speeds_name_the_field(change, match):
+    with pytest.raises(ts.ModelError, match=match):
+        ts.load_model("builtin:drop-landing").replace(**change)
+    with pytest.raises(ts.ModelError) as info:  # a fixed base has no ground to land on
+        ts.load_model("builtin:elbow-curl").replace(landing_speed=1.0)
+    assert info.value.field == "landing_speed"
 
 
 @pytest.mark.parametrize("change, field", [

@@ -2,7 +2,8 @@
 
 A parameter is named by its path in the model (`torquesim.model.paths`, the vocabulary of
 ``compare --vary`` and ``fit --bound``): ``UNIT.FIELD``, ``UNIT.rampN.FIELD``,
-``JOINT.FIELD``, ``SEGMENT.FIELD``, ``SEGMENT.LOAD.FIELD``, ``gravity`` or ``base_angle``.
+``JOINT.FIELD``, ``SEGMENT.FIELD``, ``SEGMENT.LOAD.FIELD``, ``gravity``, ``base_angle`` or
+``landing_speed``.
 Distributions: ``uniform(LOW,HIGH)``, ``normal(MEAN,SD)``, ``lognormal(MEDIAN,SIGMA)`` (σ of
 the logarithm) or ``grid(LOW,HIGH,N)``. Samples are drawn in the client from the seed (or
 a scrambled Sobol' sequence), so the table does not depend on the number of workers.

@@ -102,6 +102,7 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         **({"take_off": take_off(problem, reference)} if reference.success
            and "grf_y" in problem.target.channels else {}),
         "start_speeds_deg_s": {j: math.degrees(v) for j, v in problem.start_speeds.items()},
+        **({"landing_speed_m_s": model.landing_speed} if model.landing_speed else {}),
         "objective_deg": outcome.score, "initial_guess_objective_deg": outcome.initial_score,
         "simulations": outcome.simulations, "failed_simulations": outcome.failed_simulations,
         "wall_time_s": outcome.wall_time,
@@ -252,10 +253,14 @@ def summary_lines(summary: dict) -> list[str]:
                      f"{off['reference_s']:.3f} s, {off['reference_speed_m_s']:.3f} m/s "
                      f"({off['speed_error_percent']:+.1f} %)")
     moving = {j: v for j, v in summary.get("start_speeds_deg_s", {}).items() if v}
-    lines.append("start motion  " + ("moving: " + ", ".join(f"{j} {v:+.1f} deg/s"
-                                                           for j, v in moving.items())
-                                     + " (the target's speed at its first sample)"
-                                     if moving else "at rest (the target starts still)"))
+    if "landing_speed_m_s" in summary:
+        lines.append(f"start motion  at touchdown, {summary['landing_speed_m_s']:.3g} m/s down "
+                     "(the model's landing speed), the joints still")
+    else:
+        lines.append("start motion  " + ("moving: " + ", ".join(f"{j} {v:+.1f} deg/s"
+                                                               for j, v in moving.items())
+                                         + " (the target's speed at its first sample)"
+                                         if moving else "at rest (the target starts still)"))
     lines += [
         "reference     = the fitted model re-simulated with Radau",
         "activation    mean " + ", ".join(f"{u} {a:.3f}"

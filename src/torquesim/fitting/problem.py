@@ -152,13 +152,16 @@ class FitProblem:
                                else (u.activation.initial_level if self.space.rest_level is None
                                      else self.space.rest_level) for u in base.units]
         # a body on the ground starts from its first frames (its standing equilibrium is
-        # sensitive to their noise); a fixed base from the first sample, as recorded
-        first = (self.target.start_angles() if base.base == "free"
+        # sensitive to their noise); a fixed base, or a landing (its first frames span the
+        # impact, which is no noise), from the first sample, as recorded
+        landing = bool(base.landing_speed)
+        first = (self.target.start_angles() if base.base == "free" and not landing
                  else self.target.angles[:, 0])
         start_angles = dict(zip(self.target.joints, first, strict=True))
-        # a recording that begins in motion starts moving (its spline's speed at t0)
-        self.start_speeds = dict(zip(self.target.joints, self.target.start_speeds().tolist(),
-                                     strict=True))
+        # a recording that begins in motion starts moving (its spline's speed at t0); a
+        # landing's joints start still, the body moving down at the model's landing speed
+        speeds = np.zeros(len(first)) if landing else self.target.start_speeds()
+        self.start_speeds = dict(zip(self.target.joints, speeds.tolist(), strict=True))
         joints = tuple(j if j.name not in start_angles else
                        _with_start(j, float(start_angles[j.name]), self.start_speeds[j.name])
                        for j in base.joints)

@@ -220,6 +220,7 @@ BUILTIN_TARGETS = {
     "squat-jump": jump_motion,
     "countermovement-jump": lambda: jump_motion("countermovement-jump"),
     "squat-jump-biarticular": lambda: jump_motion("squat-jump-biarticular"),
+    "drop-landing": lambda: jump_motion("drop-landing"),
     "curl": min_jerk_curl,
     "elbow-curl": min_jerk_curl,
     "knee-extension": lambda: raise_hold_lower({"knee": (90.0, 15.0)},

@@ -79,6 +79,8 @@ FIELD_DOCS = {
     "positive": "what a growing angle is: " + ", ".join(POSITIVE_MOTIONS),
     "activation_time": "s, tau_act of da/dt (Thelen 2003: 0.015). (0, 1]",
     "base": "fixed (a pivot at the origin) or free (stands on its contacts)",
+    "landing_speed": "m/s, a landing: starts at touchdown, moving down at this speed "
+                     "(free base; 0 = standing). [0, 10]",
     "parent_distance": "m, where its joint sits along the parent's axis. [-10, 10]",
     "distance": "m, along the segment axis from its proximal joint",
     "offset": "m, perpendicular to the axis (+: forwards when hanging)",
@@ -104,8 +106,8 @@ JOINT_KEYS = ("name", "initial_angle", "endstop_torque", "endstop_angle_scale",
 UNIT_KEYS = ("name", "joint", "direction", "second_joint", "second_arm", "activation",
              "activation_dynamics", *TorqueGeneratorUnit.field_names())
 DYNAMICS_KEYS = ("activation_time", "deactivation_time")
-TOP_KEYS = ("name", "duration", "gravity", "base_angle", "notes", "base", "segments", "joints",
-            "units", "points", "contacts")
+TOP_KEYS = ("name", "duration", "gravity", "base_angle", "notes", "base", "landing_speed",
+            "segments", "joints", "units", "points", "contacts")
 LEGACY_KEYS = ("initial_angle", "duration", "body", "flexor", "extensor")
 REQUIRED_UNIT_KEYS = tuple(k for k in TorqueGeneratorUnit.field_names()
                            if k not in ("eccentric_slope_ratio", "ce_damping"))
@@ -324,8 +326,8 @@ def model_from_dict(data: dict) -> ChainModel:
     notes = data.get("notes", [])
     if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
         raise ModelError("notes", "must be an array of strings")
-    kwargs = {key: _number(key, data[key]) for key in ("duration", "gravity", "base_angle")
-              if key in data}
+    kwargs = {key: _number(key, data[key])
+              for key in ("duration", "gravity", "base_angle", "landing_speed") if key in data}
     if "base" in data:
         kwargs["base"] = _text("base", data["base"])
     # Every field present before the whole-model checks (a missing length would otherwise
@@ -406,6 +408,8 @@ def model_to_toml(model) -> str:
               _line("gravity", m.gravity), _line("base_angle", m.base_angle)]
     if m.base != "fixed":
         lines.append(f"base = {_value(m.base)}  # {FIELD_DOCS['base']}")
+    if m.landing_speed:
+        lines.append(_line("landing_speed", m.landing_speed))
     if m.notes:
         lines.append("notes = [" + ", ".join(_value(n) for n in m.notes) + "]")
     for seg in m.segments:

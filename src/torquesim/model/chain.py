@@ -454,6 +454,12 @@ class ChainModel:
         Named points on segments, reported in the results (toe, heel, hip…).
     contacts : tuple of GroundContact
         Ground contacts at points, against the line y = 0 (free base only).
+    landing_speed : float
+        A landing: the body starts at touchdown, moving straight down at this speed, m/s
+        (free base with contacts only). It is in its standing posture with the units as
+        standing (levels and SE stretches of the static equilibrium), lifted so that its
+        lowest contact point just touches the ground. A drop from height h lands at √(2gh):
+        2.43 m/s from 0.3 m. Default 0 (standing). Bounds [0, 10].
     """
 
     name: str
@@ -467,6 +473,7 @@ class ChainModel:
     base: str = "fixed"
     points: tuple[Point, ...] = ()
     contacts: tuple[GroundContact, ...] = ()
+    landing_speed: float = 0.0
 
     def __post_init__(self) -> None:
         check_name("name", self.name.replace("-", "_") if isinstance(self.name, str)
@@ -482,6 +489,10 @@ class ChainModel:
                              "allowed (0, 100] m/s^2 for a model with [[contacts]]")
         check_range("base_angle", self.base_angle, -math.pi, math.pi, unit="rad")
         check_range("duration", self.duration, 0.0, 600.0, low_open=True, unit="s")
+        check_range("landing_speed", self.landing_speed, 0.0, 10.0, unit="m/s")
+        if self.landing_speed and not self.contacts:
+            raise ModelError("landing_speed", f"{self.landing_speed:g} m/s on a model without "
+                             "ground contacts; allowed: 0, or a free base with [[contacts]]")
         n = len(self.segments)
         if not 1 <= n <= MAX_SEGMENTS:
             raise ModelError("segments", f"{n} segments; allowed 1 to {MAX_SEGMENTS}")
@@ -913,7 +924,9 @@ class ChainModel:
         Solved once per (immutable) model; each call returns fresh copies of the arrays.
         Joints with an ``initial_speed`` start moving at it from that state (the units as at
         rest there: their SE holds the static torques); a free base then moves so that its
-        loaded contact points start still (least squares over them).
+        loaded contact points start still (least squares over them). A model with a
+        ``landing_speed`` starts at touchdown: that standing state lifted until its lowest
+        contact point is at the ground, moving down at that speed.
 
         At joint j the units must cancel the load τ_load = Σ_{k≥j} g·B_k·sin φ_k − T_p(q_j)
         (gravity and end stops; flexion positive).
@@ -1173,6 +1186,10 @@ class ChainModel:
             state[layout.speeds] = speeds
             if self.base == "free" and self.contacts:
                 state[layout.coordinate_speeds][:2] = self._contact_still(state)
+        if self.landing_speed:  # at touchdown: lifted out of the standing sink, moving down
+            lowest = self.kinematics(state[:self.n_base + n])["points"][self._contact_points(), 1]
+            state[1] -= lowest.min()
+            state[layout.coordinate_speeds][1] -= self.landing_speed
         return ChainStart(state, levels, torques)
 
     def _contact_still(self, state: np.ndarray) -> np.ndarray:

@@ -20,7 +20,8 @@ A path is dot-separated:
 ``POINT.FIELD``                 the ground contact at a point: ``stiffness``, ``exponent``,
                                 ``damping``, ``friction`` or ``slip_speed``, e.g.
                                 ``toe.stiffness``
-``gravity``, ``base_angle``     the model's own numbers
+``gravity``, ``base_angle``,    the model's own numbers (``landing_speed``: a drop
+``landing_speed``               landing's touchdown speed, m/s)
 ==============================  ==========================================================
 
 Optional leading ``units.``, ``joints.``, ``segments.``, ``points.`` or ``contacts.`` are
@@ -48,12 +49,14 @@ HELP = ("UNIT.FIELD, UNIT.initial_level, UNIT.second_arm (two-joint), "
         "UNIT.activation_time|deactivation_time, JOINT.FIELD, SEGMENT.FIELD, "
         "SEGMENT.LOAD.mass|distance|inertia, POINT.distance|offset, "
         "POINT.stiffness|exponent|damping|friction|slip_speed (its contact), gravity, "
-        "base_angle")
+        "base_angle, landing_speed")
 #: The numbers of a point and of the ground contact at a point.
 POINT_FIELDS = tuple(f.name for f in fields(Point) if f.name not in ("name", "segment"))
 CONTACT_FIELDS = tuple(f.name for f in fields(GroundContact) if f.name != "point")
 
 
+#: The model's own numbers, each a path of one word.
+MODEL_FIELDS = ("gravity", "base_angle", "landing_speed")
 #: The optional first word of a path naming the kind of thing it names.
 GROUPS = ("units", "joints", "segments", "points", "contacts")
 
@@ -93,7 +96,7 @@ def canonical_path(model: ChainModel, path: str, field: str = "path") -> str:
 def _locate(model: ChainModel, path: str, field: str):
     """(kind, owner name, rest of the path) of ``path`` in ``model``."""
     parts = _parts(path)
-    if len(parts) == 1 and parts[0] in ("gravity", "base_angle"):
+    if len(parts) == 1 and parts[0] in MODEL_FIELDS:
         return "model", "", parts
     units = _unit_names(model)
     unit_fields = {f.name for f in fields(TorqueGeneratorUnit)}

@@ -3,7 +3,7 @@ without loading the model code: the command line's help lists them from here."""
 
 PREFIX = "builtin:"
 PRESET_NAMES = ("elbow-curl", "knee-extension", "arm-raise", "squat-jump",
-                "countermovement-jump", "squat-jump-biarticular")
+                "countermovement-jump", "squat-jump-biarticular", "drop-landing")
 
 
 def preset_list() -> str:

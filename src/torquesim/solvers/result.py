@@ -87,11 +87,14 @@ class GroundEvents:
     """What a run of a body on the ground did (`SimulationResult.ground_events`).
 
     ``take_off``: the first sample (s) at which every contact is unloaded after one was
-    loaded; ``landing``: the first loaded sample after it (None: not within the run).
+    loaded; ``landing``: the first loaded sample after it (None: not within the run; 0 for a
+    model that starts at touchdown, `ChainModel.landing_speed`).
     ``rise``: the centre of mass's highest point above its start, m, at ``apex_time`` (s);
+    ``sink``: its lowest point below its start, m, at ``lowest_time`` (s);
     ``flight_height``: v²/(2g) of its vertical speed at take-off, m (the height the flight
     phase adds; None without a take-off). ``peak_force``: the largest total vertical ground
-    reaction force, N, at ``peak_time``; ``weight``: body weight, N."""
+    reaction force, N, at ``peak_time``; ``weight``: body weight, N; ``touchdown_speed``:
+    the model's landing speed, m/s (0 when it starts standing)."""
 
     take_off: float | None
     landing: float | None
@@ -101,17 +104,24 @@ class GroundEvents:
     peak_force: float
     peak_time: float
     weight: float
+    sink: float = 0.0
+    lowest_time: float = 0.0
+    touchdown_speed: float = 0.0
 
     def summary_lines(self) -> list[str]:
         """The events as the command line's summary prints them."""
         lines = []
+        if self.touchdown_speed:
+            lines.append(f"touchdown     t = 0 at {self.touchdown_speed:.3g} m/s; the centre of "
+                         f"mass sinks {self.sink:.4f} m, lowest at t = {self.lowest_time:.4f} s")
         if self.take_off is None:
             lines.append("take-off      none (some contact stays loaded)")
         else:
             lines.append(f"take-off      t = {self.take_off:.4f} s; flight adds "
                          f"{self.flight_height:.4f} m (v²/2g of the take-off speed)")
-        lines.append(f"CoM rise      {self.rise:.4f} m above the start, apex at t = "
-                     f"{self.apex_time:.4f} s")
+        if self.rise > 0.0 or not self.touchdown_speed:
+            lines.append(f"CoM rise      {self.rise:.4f} m above the start, apex at t = "
+                         f"{self.apex_time:.4f} s")
         lines.append(f"peak GRF      {self.peak_force:.1f} N ({self.peak_force / self.weight:.2f} "
                      f"body weights) at t = {self.peak_time:.4f} s")
         if self.take_off is not None:
@@ -333,8 +343,13 @@ class SimulationResult:
             flight = max(speed, 0.0) ** 2 / (2.0 * m.gravity) if m.gravity > 0 else math.inf
             back = np.flatnonzero(loaded[i:])
             landing = float(self.time[i + back[0]]) if back.size else None
+        if m.landing_speed and take_off is None:
+            landing = 0.0
+        low = int(np.argmin(c["com_y"]))
         return GroundEvents(take_off, landing, rise, float(self.time[int(np.argmax(c["com_y"]))]),
-                            flight, float(c["grf_y"][peak]), float(self.time[peak]), weight)
+                            flight, float(c["grf_y"][peak]), float(self.time[peak]), weight,
+                            float(c["com_y"][0] - c["com_y"][low]), float(self.time[low]),
+                            m.landing_speed)
 
     def kinematics(self) -> dict[str, np.ndarray]:
         """Positions and velocities over the run (`ChainModel.kinematics`): joints, centres,
