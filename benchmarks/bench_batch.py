@@ -106,7 +106,8 @@ def bench_sweep(clients: dict, samples: int) -> None:
     rates = {}
     for n, client in clients.items():
         start = time.perf_counter()
-        table, _ = sweep(model, VARY, samples=samples, chunk=1000, client=client)
+        table, _ = sweep(model, VARY, samples=samples, method="imex", step=5e-3, chunk=1000,
+                         client=client)
         wall = time.perf_counter() - start
         rates[n] = samples / wall
         tasks = samples / 1000

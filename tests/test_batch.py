@@ -129,6 +129,33 @@ def test_a_failing_sample_fails_its_own_row(client):
     assert set(table.loc[table["flexor.se_stiffness"] > 50, "accuracy"]) == {"ok"}
 
 
+def test_a_sample_whose_run_diverges_is_run_again_at_half_the_step(client):
+    """imex-ros2 at 10 ms: the jump goes non-finite (before, its row failed); halved until
+    its estimated error meets the tolerance, each row ends accurate at a step that divides
+    10 ms by a power of 2, within the tolerance of the reference's peak knee angle."""
+    table, _ = sweep("builtin:squat-jump", ["knee_extensors.isometric_torque=uniform(540,560)"],
+                     samples=2, seed=1, chunk=2, client=client, method="imex-ros2",
+                     step=10e-3)
+    assert set(table["accuracy"]) == {"ok"}, table["error"].tolist()
+    halvings = np.log2(10e-3 / table["step_s"])
+    assert (halvings >= 2).all() and np.allclose(halvings, np.round(halvings))
+    row = table.iloc[0]
+    model = set_parameter(ts.load_model("builtin:squat-jump"), "knee_extensors.isometric_torque",
+                          float(row["knee_extensors.isometric_torque"]))
+    peak = np.degrees(ts.simulate(model, "reference").angle("knee").max())
+    assert row["peak_knee_deg"] == pytest.approx(peak, abs=0.5)
+
+
+def test_the_default_technique_of_a_sweep_is_chosen_by_accuracy(client):
+    """No --method, no --step: on the jump the choice (imex-ros2, its contacts implicit)
+    within half the tolerance, named in the table's attributes; every row accurate."""
+    table, _ = sweep("builtin:squat-jump", ["knee_extensors.isometric_torque=uniform(540,560)"],
+                     samples=2, seed=1, chunk=2, client=client)
+    assert table.attrs["method"] == "imex-ros2"
+    assert "chosen for 0.25°" in table.attrs["choice"]
+    assert set(table["accuracy"]) == {"ok"}
+
+
 def test_every_sweep_row_carries_an_accuracy_verdict(client):
     """At a 20 ms step the arm raise is radians off (IMEX, reference peak 72°): every row is
     run again at half the step until its estimated error meets the tolerance (0.5°), and says

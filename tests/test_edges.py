@@ -173,7 +173,8 @@ def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, 
     import torquesim.fitting.outputs as fit_outputs
     import torquesim.optimisation as optimisation
     import torquesim.study.outputs as study_outputs
-    from torquesim.fitting.problem import default_step, fit_step
+    from torquesim.fitting.problem import fit_step
+    from torquesim.solvers.choice import choose_technique
     from torquesim.solvers.simulation import step_count
 
     model = ts.load_model(f"builtin:{preset}")
@@ -204,11 +205,13 @@ def test_every_command_runs_on_every_preset_with_its_defaults(preset, tmp_path, 
     with pytest.raises(_Reached):
         main(["fit", *spec, "--quiet", "--out", str(tmp_path / "fit")])
 
-    def optimise_check(chain, goals, method, step, *_, **__):
+    def optimise_check(chain, goals, method, step, *_, accuracy, **__):
         # the optimisation's defaults, resolved as OptimiseProblem does (its compiled search
-        # kernels are tested in test_optimise.py)
-        assert goals and method == "imex" and step is None
-        fit_step(chain.duration, default_step(chain))
+        # kernels are tested in test_optimise.py): a technique and step within the accuracy
+        assert goals and method is None and step is None
+        choice = choose_technique(chain, accuracy)
+        assert choice is not None and choice.error <= accuracy
+        fit_step(chain.duration, choice.step)
 
     goal = "jump_height" if model.contacts else f"peak_speed:{model.joints[-1].name}"
     _stop_at(monkeypatch, optimisation, "OptimiseProblem", optimise_check)

@@ -1169,13 +1169,17 @@ def _strength_unit(model, unit_name, trials, units, torque_sign):
 @click.option("--minimise", "--minimize", "minimise", multiple=True, metavar="GOAL",
               help="A goal to minimise (repeatable), e.g. time_to:elbow=90deg or '0.1*effort' "
                    "(quoted for the shell).")
-@click.option("--method", type=click.Choice(FIT_METHODS), default="imex", show_default=True,
+@click.option("--method", type=click.Choice(FIT_METHODS), default=None,
               help="Technique of every candidate's run (explicit RK4 ones need a small step; "
-                   "runs beyond its stability limit fail).")
+                   "runs beyond its stability limit fail). Default: the cheapest technique "
+                   "and step whose run of the start meets --accuracy (imex, or on a body on "
+                   "the ground imex or imex-ros2), said in the output; imex with a --step.")
 @click.option("--step", type=TIME, default=None,
-              help="Fixed step (s; ms/us suffixes). Default as for fit: 5 ms on a fixed "
-                   "base, within 0.7 of the contacts' stability limit on a body on the ground "
-                   "(0.25 ms on builtin:squat-jump).")
+              help="Fixed step (s; ms/us suffixes). Default: the cheapest that meets "
+                   "--accuracy (of --method, or of the technique chosen).")
+@click.option("--accuracy", type=float, default=0.05, show_default=True,
+              help="Max angle error (deg) the default technique and step must meet on the "
+                   "start's run (estimated by step doubling, as simulate's check).")
 @click.option("--duration", type=TIME, default=None,
               help="Simulate this long instead of the model's duration (s).")
 @click.option("--free", "free", multiple=True, metavar="PATH",
@@ -1232,9 +1236,9 @@ def _strength_unit(model, unit_name, trials, units, torque_sign):
 @click.option("--overwrite", is_flag=True,
               help="Start again in an --out directory that holds an earlier optimisation.")
 @click.option("--quiet", is_flag=True, help="No progress bar or progress lines.")
-def optimise(model_path, maximise, minimise, method, step, duration, free, frozen, bounds,
-             window_delay, window_duration, window_level, constrain, endstop_depth, robust,
-             timing_error, robust_mode, generations, population, sigma, seed, workers,
+def optimise(model_path, maximise, minimise, method, step, accuracy, duration, free, frozen,
+             bounds, window_delay, window_duration, window_level, constrain, endstop_depth,
+             robust, timing_error, robust_mode, generations, population, sigma, seed, workers,
              scheduler, out_dir, resume, overwrite, quiet):
     """Optimise the activation ramps of a model for one or more goals.
 
@@ -1268,8 +1272,8 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
                          "--minimise GOAL, e.g. --minimise time_to:elbow=90deg")
     compiling_for(f"the model's checks ({model_path})")
     model = load_model(model_path)
-    compiling_for(f"the optimiser's runs ({method}, and Radau for the check) for "
-                  f"{model_kind(model)}")
+    compiling_for(f"the optimiser's runs ({method or 'the techniques it chooses from'}, and "
+                  f"Radau for the check) for {model_kind(model)}")
     if duration is not None:
         from .errors import check_range
 
@@ -1323,7 +1327,8 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
             try:
                 problem = OptimiseProblem(model, goals, method, step, window, tuple(free),
                                           freeze, limits, robust, timing_error, robust_mode,
-                                          constraints=constraints, endstop_depth=endstop_depth)
+                                          constraints=constraints, endstop_depth=endstop_depth,
+                                          accuracy=_tolerance_rad(accuracy, "--accuracy"))
             except ModelError as exc:
                 raise _as_option(exc, OPTIMISE_OPTIONS) from None
             state = None
@@ -1332,6 +1337,8 @@ def optimise(model_path, maximise, minimise, method, step, duration, free, froze
             previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
                                                                          signal.SIGTERM)}
             reporter = Progress(quiet)
+            if problem.choice is not None:
+                reporter.say(problem.choice.describe())
             scorer = None if client is None else DaskScorer(client, problem)
             where = "this process" if scorer is None else f"{scorer.workers} Dask workers"
             reporter.say(f"optimising {len(problem.space.free)} parameters of {model.name} "
@@ -1472,13 +1479,15 @@ def batch_fit(targets, manifest, model_path, method, step, search, starts, itera
               help="Random seed of the samples (drawn in the client: the same table whatever "
                    "the workers).")
 @click.option("--sobol", is_flag=True, help="Scrambled Sobol' points instead of random.")
-@click.option("--method", type=click.Choice(FIT_METHODS),
-              default="imex", show_default=True,
-              help="Technique of every sample (as in `simulate`).")
+@click.option("--method", type=click.Choice(FIT_METHODS), default=None,
+              help="Technique of every sample (as in `simulate`). Default: the cheapest "
+                   "technique and step whose run of the model as given is within half the "
+                   "--tolerance (imex, or on a body on the ground imex or imex-ros2), said in "
+                   "the output; imex with a --step.")
 @click.option("--step", type=TIME, default=None,
               help="Fixed step of every sample (s; ms/us suffixes); must divide the duration. "
-                   "Default: 5 ms on a fixed base; on a body on the ground the fit's default, "
-                   "within its contacts' RK4 stability limit (0.25 ms on the squat jump).")
+                   "Default: the cheapest that meets half the --tolerance (of --method, or of "
+                   "the technique chosen).")
 @click.option("--chunk", type=click.IntRange(1, 1_000_000), default=None,
               help="Samples per Dask task (default: an even split giving every worker at "
                    "least 4 tasks, at most 1000 samples each).")
@@ -1517,6 +1526,8 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
                    "command again to continue", err=True)
         return 130
     reporter.close()
+    if table.attrs.get("choice"):
+        click.echo(table.attrs["choice"])
     counts = table["accuracy"].value_counts().to_dict()
     failed = counts.get("failed", 0)
     doubtful = table[table["accuracy"].isin(["inaccurate", "unstable"])]
@@ -1547,7 +1558,8 @@ OPTIMISE_OPTIONS = {"maximise": "--maximise", "minimise": "--minimise",
                     "free": "--free",
                     "frozen": "--freeze", "bounds": "--bound",
                     "timing_error": "--timing-error", "robust": "--robust", "step": "--step",
-                    "method": "--method", "window.delay": "--window-delay",
+                    "method": "--method", "accuracy": "--accuracy",
+                    "window.delay": "--window-delay",
                     "window.duration": "--window-duration", "window.level": "--window-level"}
 
 

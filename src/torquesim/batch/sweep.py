@@ -22,9 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelError, SimulationError, check_range
+from ..fitting.problem import DEFAULT_METHOD
 from ..io.fingerprint import fingerprint as hash_parts
 from ..model.chain import ChainModel, as_chain
 from ..model.paths import parse_assignment, set_parameter
+from ..solvers.choice import choose_technique
 from ..solvers.simulation import DEFAULT_TOLERANCE
 from ..solvers.techniques import FIT_METHODS
 
@@ -144,7 +146,8 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
     against a run at twice the step, `simulate`'s default check, within ``tolerance`` rad; a
     sample found inaccurate or unstable is run again at half the step, up to
     `MAX_REFINEMENTS` times, and its row gives the step it was run at) and the worker. A
-    failing sample fills its own row with its one-line error."""
+    sample whose run fails is run again at half the step too (a step too coarse for its
+    parameters); one that still fails fills its own row with its one-line error."""
     from ..solvers.simulation import simulate
     from .engine import single_threaded, worker_name
 
@@ -162,11 +165,14 @@ def simulate_chunk(base: ChainModel, paths: list[str], values: np.ndarray, metho
             for path, value in zip(paths, row, strict=True):
                 model = set_parameter(model, path, value)
             h = step
-            for _ in range(MAX_REFINEMENTS + 1):
+            for refinement in range(MAX_REFINEMENTS + 1):
                 result = simulate(model, method, h, check=False, advise=False,
                                   tolerance=tolerance)
                 if not result.success:
-                    raise SimulationError(result.message)
+                    if refinement == MAX_REFINEMENTS:
+                        raise SimulationError(result.message)
+                    h /= 2
+                    continue
                 verdict = ("unstable" if result.stability is not None
                            and result.stability.exceeded else
                            "inaccurate" if result.message else "ok")
@@ -221,12 +227,18 @@ SWEEP_FINGERPRINT_FILE = "sweep_fingerprint.txt"
 FIXED_BASE_STEP = 5e-3
 
 
+#: A sweep's default technique and step meet this share of its tolerance on the model as
+#: given (`choose_technique`); the rest is left for the samples' variation, each sample's
+#: own estimate deciding (`simulate_chunk`).
+CHOICE_SHARE = 0.5
+
+
 def sweep_step(model) -> float:
-    """The default step of a sweep of ``model``, s: `FIXED_BASE_STEP` on a fixed base (or the
-    largest step below it that divides the duration); on a body on the ground the fit's
-    default (`default_step`: within its contacts' RK4 stability limit, which every technique
-    meets explicitly), which divides the duration. Before, every sweep of a jump ran at 5 ms
-    and every sample diverged."""
+    """The step of a sweep of ``model`` when no step of its technique meets the tolerance
+    (`choose_technique`), s: `FIXED_BASE_STEP` on a fixed base (or the largest step below it
+    that divides the duration); on a body on the ground the fit's default (`default_step`:
+    within its contacts' RK4 stability limit), which divides the duration. Before, every
+    sweep of a jump ran at 5 ms and every sample diverged."""
     from ..fitting.problem import default_step, fit_step
 
     wanted = default_step(model) if model.base == "free" and model.contacts else \
@@ -235,14 +247,17 @@ def sweep_step(model) -> float:
 
 
 def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = False,
-          method: str = "imex", step: float | None = None, out=None,
+          method: str | None = None, step: float | None = None, out=None,
           chunk: int | None = None,
           client=None, workers: int | None = None, scheduler: str | None = None,
           progress=None, tolerance: float = DEFAULT_TOLERANCE, overwrite: bool = False):
     """Simulate ``model`` (a chain, a file or ``builtin:NAME``) over the parameter
     distributions ``vary`` (``PATH=KIND(...)`` strings or `Distribution`) on Dask.
 
-    ``step`` (s) defaults to `sweep_step` of the model. Returns (table, histories): a pandas
+    ``method`` and ``step`` (s) default to the cheapest technique and step whose run of the
+    model as given is within `CHOICE_SHARE` of ``tolerance`` (`choose_technique`; ``imex``
+    with a given step; `sweep_step` where no step meets it); the table's
+    ``attrs["choice"]`` says which. Returns (table, histories): a pandas
     DataFrame (its ``attrs["step_s"]`` the step every sample starts at) with one row per
     sample (its parameter
     values, each joint's peak angle and its time, final angle, the largest unit torque, the
@@ -262,7 +277,7 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     from ..solvers.simulation import step_count
     from .engine import check_scheduler, connect, workers_of
 
-    if method not in FIT_METHODS:
+    if method is not None and method not in FIT_METHODS:
         raise ModelError("--method", f"{method!r}; allowed: {', '.join(FIT_METHODS)}")
     _whole_number("--samples", samples, 1, 10_000_000)
     if chunk is not None:
@@ -275,8 +290,13 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     if not distributions:
         raise ModelError("--vary", "nothing to vary; allowed: one or more PATH=KIND(...)")
     chain = as_chain(load_model(model) if isinstance(model, str | Path) else model)
+    choice = None
     if step is None:
-        step = sweep_step(chain)
+        choice = choose_technique(chain, CHOICE_SHARE * tolerance,
+                                  None if method is None else (method,))
+        method, step = (choice.method, choice.step) if choice is not None else \
+            (method, sweep_step(chain))
+    method = method or DEFAULT_METHOD
     n_steps = step_count(chain.duration, step, "--step")
     paths = [d.path for d in distributions]
     for d in distributions:  # every path and a typical value checked before any work
@@ -322,6 +342,8 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     starts = list(range(0, values.shape[0], chunk))
     table, histories = _assemble(chain, paths, values, [results[k] for k in range(len(starts))])
     table.attrs["step_s"] = step  # the samples' first step (a refined one has a smaller)
+    table.attrs["method"] = method
+    table.attrs["choice"] = None if choice is None else choice.describe()
     if out is not None:
         from .report import write_sweep
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import ModelError
 from .goals import GOALS, Constraint, Goal, Trial, parse_constraint, parse_goal
-from .problem import OptimiseProblem, Window
+from .problem import ACCURACY, OptimiseProblem, Window
 from .search import OptimiseOutcome, OptimiseSettings
 
 __all__ = ["GOALS", "Constraint", "Goal", "OptimiseProblem", "OptimiseSettings", "Optimum",
@@ -75,8 +75,9 @@ def constraints_of(model, constrain=()) -> tuple[Constraint, ...]:
                  for c in constrain)
 
 
-def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: str = "imex",
-             step: float | None = None, window: Window | None = None, free=(),
+def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(),
+             method: str | None = None, step: float | None = None,
+             accuracy: float = ACCURACY, window: Window | None = None, free=(),
              frozen: dict | None = None, bounds: dict | None = None, robust: int = 0,
              timing_error: float = 0.01, robust_mode: str = "worst", constrain=(),
              endstop_depth: float = 0.0, settings: OptimiseSettings | None = None,
@@ -91,7 +92,9 @@ def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: st
     perturbed copies with onset errors in ±``timing_error`` s make the optimum robust.
     ``constrain``: goals held within bounds (``"com_speed_x_at_takeoff=-0.1..0.1"`` or
     `Constraint` objects); ``endstop_depth``: how many end-stop scales a run may go past an
-    end stop (default 0: an optimum does not lean on the passive stop torque). With
+    end stop (default 0: an optimum does not lean on the passive stop torque). ``method``
+    and ``step`` default to the cheapest technique and step whose run of the start is
+    within ``accuracy`` (rad, default 0.05°; `OptimiseProblem`). With
     ``out`` the outputs of ``torquesim optimise`` are written there. With a Dask ``client``
     each generation is scored on its workers (the same optimum as here).
     """
@@ -106,7 +109,7 @@ def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(), method: st
     problem = OptimiseProblem(model, goals_of(model, maximise, minimise), method, step,
                               window, tuple(free), frozen, bounds, robust, timing_error,
                               robust_mode, constraints=constraints_of(model, constrain),
-                              endstop_depth=endstop_depth)
+                              endstop_depth=endstop_depth, accuracy=accuracy)
     evaluate = None
     if client is not None:
         from .distributed import DaskScorer

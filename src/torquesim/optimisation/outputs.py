@@ -98,6 +98,13 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
         "goals": goals,
         "cost": {"start": outcome.start_cost, "optimum": outcome.cost},
         "method": problem.method, "step_s": problem.step,
+        "technique_choice": None if problem.choice is None else {
+            "accuracy_deg": math.degrees(problem.choice.accuracy),
+            "estimated_error_deg": math.degrees(problem.choice.error),
+            "work_body_evaluations": problem.choice.work,
+            "tried": [{"method": m, "step_s": h,
+                       "estimated_error_deg": None if e is None else math.degrees(e),
+                       "work_body_evaluations": w} for m, h, e, w in problem.choice.tried]},
         "robust": ({"copies": problem.robust, "timing_error_s": problem.timing_error,
                     "mode": problem.robust_mode, "seed": problem.perturbation_seed}
                    if problem.robust else None),
@@ -206,8 +213,11 @@ def _value_text(goal, value) -> str:
 
 def summary_lines(summary: dict, problem: OptimiseProblem) -> list[str]:
     """The printed summary."""
+    chosen = summary.get("technique_choice")
     lines = [f"model         {summary['model']}; {summary['free_parameters']} free parameters; "
-             f"{summary['method']} at {summary['step_s'] * 1e3:.4g} ms"]
+             f"{summary['method']} at {summary['step_s'] * 1e3:.4g} ms" + (
+                 f" (chosen: the least work within {chosen['accuracy_deg']:.3g}°, estimated "
+                 f"{chosen['estimated_error_deg']:.2g}° on the start)" if chosen else "")]
     for goal, e in zip(problem.goals, summary["goals"], strict=True):
         lines.append(f"{e['direction']} {e['goal']}: start {goal.shown(e['start'])} → optimum "
                      f"{goal.shown(e['optimum'])} (gain {e['gain_percent']:+.2f} %)")

@@ -49,9 +49,10 @@ from ..fitting.parameters import (
     vector,
     with_ramps,
 )
-from ..fitting.problem import default_step, fit_step
+from ..fitting.problem import DEFAULT_METHOD, default_step, fit_step
 from ..model.chain import ChainModel, as_chain
 from ..solvers import fixed_step as fs
+from ..solvers.choice import choose_technique
 from ..solvers.techniques import (
     FIT_METHODS,
     default_coupling,
@@ -65,6 +66,9 @@ FAILED_COST = 1.0e6
 #: Cost of an infeasible candidate, before its violation is added (`OptimiseProblem`).
 INFEASIBLE_COST = 1.0e3
 ROBUST_MODES = ("worst", "mean")
+#: The default `OptimiseProblem.accuracy`, rad: the max angle error of the chosen technique
+#: and step on the start's run.
+ACCURACY = math.radians(0.05)
 #: Duration of the ramps added to a unit with fewer than 3 (they hold its level), s.
 HOLD_RAMP_DURATION = 0.1
 
@@ -188,11 +192,20 @@ class OptimiseProblem:
     model : ChainModel
         The starting model (its activations: the start of the search).
     goals : tuple of Goal
-    method : str
-        Technique of the candidates' runs: ``imex`` (default), ``monolithic``, ``partitioned``.
+    method : str or None
+        Technique of the candidates' runs, one of `FIT_METHODS`. Default (None, with ``step``
+        None): the cheapest technique and step whose run of the start meets ``accuracy``
+        (`torquesim.solvers.choice.choose_technique`, in ``choice``); with a ``step``:
+        ``imex``.
     step : float or None
-        s; default as a fit's (`torquesim.fitting.problem.default_step`: 5 ms on a fixed base,
-        within 0.7 of the contacts' RK4 limit on a body on the ground).
+        s. Default (None): the cheapest step of ``method`` (or of the candidate techniques)
+        that meets ``accuracy``; where none does, a fit's default
+        (`torquesim.fitting.problem.default_step`).
+    accuracy : float
+        The max angle error (rad, estimated on the start's run) the chosen technique and step
+        must meet. Default `ACCURACY` (0.05°): on the squat jump at 0.1° the search leant on
+        the integration error (its optimum, re-simulated with the reference, no longer
+        jumped). Bounds (0, π].
     window : Window
     free, frozen, bounds
         What may move (module docstring).
@@ -213,7 +226,7 @@ class OptimiseProblem:
 
     model: object = None
     goals: tuple = ()
-    method: str = "imex"
+    method: str | None = None
     step: float | None = None
     window: Window = field(default_factory=Window)
     free: tuple = ()
@@ -225,14 +238,16 @@ class OptimiseProblem:
     perturbation_seed: int = 1
     constraints: tuple = ()
     endstop_depth: float = 0.0
+    accuracy: float = ACCURACY
     simulations: int = 0
     failures: Counter = field(default_factory=Counter)
 
     def __post_init__(self) -> None:
         from ..model.presets import preset
 
-        if self.method not in FIT_METHODS:
+        if self.method is not None and self.method not in FIT_METHODS:
             raise ModelError("method", f"{self.method!r}; allowed: {', '.join(FIT_METHODS)}")
+        check_range("accuracy", self.accuracy, 0.0, math.pi, low_open=True, unit="rad")
         if not self.goals:
             raise ModelError("goal", "none given; allowed: at least one --maximise or "
                              "--minimise GOAL")
@@ -257,8 +272,15 @@ class OptimiseProblem:
         self.x0 = vector([u.activation for u in self.model3.units])
         self.space = parameter_space(self.model3, self.x0, self.window, self.free,
                                      self.frozen, self.bounds)
+        self.choice = None
         if self.step is None:
-            self.step = default_step(start)
+            self.choice = choose_technique(start, self.accuracy,
+                                           None if self.method is None else (self.method,))
+            if self.choice is not None:
+                self.method, self.step = self.choice.method, self.choice.step
+            else:
+                self.step = default_step(start)
+        self.method = self.method or DEFAULT_METHOD
         self.step, self.n_steps = fit_step(start.duration, self.step)
         begin = self.model3.initial_state()
         self.y0 = begin.state
