@@ -428,8 +428,8 @@ def test_constraints_parse_in_their_units_and_rank_infeasible_candidates():
             parse_constraint(bad, jump if "jump" in bad else curl)
         assert info.value.field == "constrain"
     forwards = parse_constraint("com_speed_x_at_takeoff=0.3..0.4", jump)
-    problem = OptimiseProblem(jump, goals_of(jump, maximise="jump_height"),
-                              constraints=(forwards,))
+    problem = OptimiseProblem(jump, goals_of(jump, maximise="jump_height"), "imex", 2.5e-4,
+                              constraints=(forwards,))  # a technique other tests compile
     values, reasons, violation = problem.goal_values(problem.x0[None, :])
     start_drift = Trial.of(problem.run(problem.x0)).com_speed_x
     assert reasons == [""] and violation[0] > 1.0  # the preset takes off nearly vertically
