@@ -21,7 +21,7 @@ BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)"
 PAGES = {
     "docs/study.md": {"study-verdict", "study-limits", "default-checks", "jump-verdict",
                       "jump-limits", "jump-stiffness", "landing-verdict", "landing-limits",
-                      "landing-stiffness"},
+                      "landing-stiffness", "landing-speeds"},
     "docs/validation.md": {"validation-figures", "validation-ground"},
     "docs/fitting.md": {"fit-benchmark", "jump-unseen"},
     "docs/optimise.md": {"optimise-benchmark"},

@@ -10,7 +10,8 @@
                                            # and that the optima of docs/optimise.md regenerate
                                            # within their stated spread (~1 min)
     python scripts/make_docs.py --jump     # only the study on the squat jump (~25 min)
-    python scripts/make_docs.py --landing  # only the study on the drop landing (~1 min)
+    python scripts/make_docs.py --landing  # only the study on the drop landing and its
+                                           # touchdown speeds (~2 min)
     python scripts/make_docs.py --curl     # the curl's study and sensitivity, not the jump
                                            # nor the landing
     python scripts/make_docs.py --presets  # only the presets' motions (docs/presets.md), their
@@ -55,6 +56,8 @@ GROUND_STEPS = ("--steps", "5,2.5,1,0.5,0.25,0.1,0.05,0.025")
 GROUND_FIGURES = ("work_precision.png", "time_constants.png")
 #: The sensitivity figure: ``compare --vary`` of the SE stiffness.
 SENSITIVITY = ("--vary", "se_stiffness=200,600,3000")
+#: The landing's study again at these touchdown speeds (m/s; drops of 0.1, 0.3 and 0.59 m).
+LANDING_SPEEDS = ("--vary", "landing_speed=1.4,2.43,3.4")
 
 
 def _rows(path: Path) -> list[dict]:
@@ -176,6 +179,34 @@ GROUND_STUDIES = {"squat-jump": ("jump", "the jump"),
                   "drop-landing": ("landing", "the landing")}
 
 
+def speeds_block(folder: Path) -> str:
+    """The landing's study at each touchdown speed (`LANDING_SPEEDS`): IMEX's and
+    imex-ros2's stability limits, the cheapest technique at each accuracy and the cost
+    ratio of IMEX to imex-ros2 at 0.1°."""
+    rows = _rows(folder / "sensitivity.csv")
+    targets = ("1", "0.1", "0.01", "0.001")
+    lines = ["| touchdown speed | stability limit: imex / imex-ros2 | "
+             + " | ".join(f"cheapest at {t}°" for t in targets)
+             + " | modelled cost at 0.1°, imex / imex-ros2 |",
+             "|---|---|" + "---|" * len(targets) + "---|"]
+    for value in dict.fromkeys(r["value"] for r in rows):
+        by = {r["technique"]: r for r in rows if r["value"] == value}
+        imex, ros2 = by["imex"], by["imex-ros2"]
+
+        def limit(r):
+            return f"{float(r['stability_limit_s']) * 1e3:g} ms" if r["stability_limit_s"] \
+                else "none"
+
+        ratio = (f"{float(imex['cost_0.1deg_s']) / float(ros2['cost_0.1deg_s']):.2f}"
+                 if imex["cost_0.1deg_s"] and ros2["cost_0.1deg_s"] else "—")
+        lines.append(f"| {float(value):g} m/s | {limit(imex)} / {limit(ros2)} | "
+                     + " | ".join(imex[f"cheapest_{t}deg"] or "none" for t in targets)
+                     + f" | {ratio} |")
+    return ("`torquesim compare --model builtin:drop-landing " + " ".join(LANDING_SPEEDS)
+            + "` (the stability limit: the largest step within 1° of the reference; measured "
+            f"{datetime.now(UTC).date()}):\n\n" + "\n".join(lines) + "\n")
+
+
 def ground_blocks(torquesim, tmp: Path, preset: str) -> dict[str, str]:
     """The study on a body on the ground (`GROUND_STUDIES`): its verdict, limits and
     stiffness blocks; copies its figures to docs/figures/<prefix>_*.png."""
@@ -188,9 +219,17 @@ def ground_blocks(torquesim, tmp: Path, preset: str) -> dict[str, str]:
     manifest = json.loads((folder / "manifest.json").read_text())
     for name in GROUND_FIGURES:
         shutil.copyfile(folder / name, ROOT / "docs" / "figures" / f"{prefix}_{name}")
-    return {f"{prefix}-verdict": verdict_block(folder, manifest),
-            f"{prefix}-limits": limits_block(folder, manifest, prefix),
-            f"{prefix}-stiffness": stiffness_block(preset, what)}
+    blocks = {f"{prefix}-verdict": verdict_block(folder, manifest),
+              f"{prefix}-limits": limits_block(folder, manifest, prefix),
+              f"{prefix}-stiffness": stiffness_block(preset, what)}
+    if preset == "drop-landing":
+        speeds = tmp / f"{prefix}-speeds"
+        code = torquesim(["compare", "--model", f"builtin:{preset}", *LANDING_SPEEDS,
+                          *GROUND_STEPS, "--out", str(speeds), "--quiet"])
+        if code:
+            sys.exit(f"torquesim compare --vary on builtin:{preset} failed (exit {code})")
+        blocks["landing-speeds"] = speeds_block(speeds)
+    return blocks
 
 
 #: Slack around the stated spread of an optimum, relative (the spread is measured with the
