@@ -5,7 +5,8 @@
 CMA-ES (the ``cmaes`` package, σ 0.08) over 8 levels of the preset's profiles: each
 extensor's brace (reached 50 ms after touchdown, held 30 ms) and hold (reached in 100 ms
 more, at 180 ms; ramps of 50 ms or more, which a fit and an optimisation take as they are), the
-dorsiflexors' level and the knee and hip flexors' shared level, each within [0.02, 1]. It
+dorsiflexors' level and the knee and hip flexors' shared level (each antagonist from its
+standing level, equilibrium, in 50 ms), each within [0.02, 1]. It
 starts from a brace of 0.35, holds of 0.15 and 0.12 and antagonists at 0.1. Each candidate
 is the preset with those levels, simulated by imex-ros2 at 0.25 ms; the score is
 
@@ -51,8 +52,9 @@ def landing(x) -> ts.ChainModel:
         if unit.name in brace:
             profile = ActivationProfile(None, (Ramp(0.0, 0.05, float(brace[unit.name])),
                                                Ramp(0.03, 0.1, float(hold[unit.name]))))
-        else:
-            profile = ActivationProfile(float(x[7] if unit.name == "dorsiflexors" else x[6]))
+        else:  # from equilibrium (the side the stand needs, else 0) to its level in 50 ms
+            profile = ActivationProfile(None, (Ramp(0.0, 0.05, float(
+                x[7] if unit.name == "dorsiflexors" else x[6])),))
         units.append(replace(unit, activation=profile))
     return model.replace(units=tuple(units))
 

@@ -35,6 +35,20 @@ def test_the_reference_man_gets_the_preset_back(name):
     assert _numbers(again) == pytest.approx(_numbers(model), rel=1e-12, abs=1e-15)
 
 
+@pytest.mark.parametrize("name", ["squat-jump", "drop-landing"])
+def test_a_body_on_the_ground_stands_for_subjects_far_from_the_reference(name):
+    """The whole-body presets made for small, large, young and old women and men still
+    stand at their start (the drop landing with its antagonists at given levels, the
+    dorsiflexors at 0.25, left 42 of 100 such subjects unable to hold the ankle: its units
+    now start at equilibrium)."""
+    model = ts.load_model(f"builtin:{name}")
+    for mass, height in ((50.0, 1.55), (110.0, 1.55), (50.0, 1.95), (110.0, 1.95)):
+        for sex in ("male", "female"):
+            for age in (25, 65):
+                made = for_subject(model, Subject(mass, height, sex, age))
+                assert made.initial_state().levels.max() <= 1.0
+
+
 @pytest.mark.parametrize("sex", ["male", "female"])
 def test_de_leva_mass_fractions_sum_to_one(sex):
     """The table's fractions (paired segments twice) sum to 1 (the female table to 0.9999, as

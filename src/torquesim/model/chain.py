@@ -420,6 +420,11 @@ class ChainStart(NamedTuple):
     torques: np.ndarray  #: unit torques at t = 0, N·m
 
 
+#: The first segment's angles (rad, from the given one) from which `ChainModel._stand`
+#: seeks a standing equilibrium, in turn: the given angle first.
+STAND_TURNS = (0.0, *(sign * 0.05 * k for k in range(1, 11) for sign in (1, -1)))
+
+
 @dataclass(frozen=True)
 class ChainModel:
     """A complete simulation model: a planar chain, its units, and the duration.
@@ -1057,11 +1062,18 @@ class ChainModel:
                                  f"most {MAX_STANDING_SINK * 100:g} cm)")
         sink = max((weight / len(which) / c.stiffness) ** (1 / c.exponent)
                    for c in self.contacts)
-        guess = [-where["points"][which, 1].min() - sink, q0[0]]
-        with np.errstate(all="ignore"):  # a posture that cannot stand fails below, in words
-            solution, info, ok, _ = fsolve(residual, guess, full_output=True, xtol=1e-13)
-            unbalanced = max(abs(v) for v in residual(solution))
-        if ok != 1 or not unbalanced <= 1e-9:
+        # From the given first angle; where that fails (the foot tilted so that one contact
+        # carries nothing, where the residual is flat), from first angles ever farther from it.
+        for turn in STAND_TURNS:
+            angle = q0[0] + turn
+            low = self.kinematics(np.concatenate([[0.0, 0.0, angle], q0[1:]]))["points"]
+            guess = [-low[which, 1].min() - sink, angle]
+            with np.errstate(all="ignore"):  # a posture that cannot stand fails below
+                solution, info, ok, _ = fsolve(residual, guess, full_output=True, xtol=1e-13)
+                unbalanced = max(abs(v) for v in residual(solution))
+            if ok == 1 and unbalanced <= 1e-9:
+                break
+        else:
             raise ModelError("joints.initial_angle", "no static equilibrium on the ground "
                              "found near this posture; allowed: a posture that can stand")
         where, normal = forces(solution)

@@ -328,20 +328,22 @@ def drop_landing() -> ChainModel:
     """A drop landing: the squat jump's body and units landing flat-footed from a 0.3 m drop
     (touchdown at 2.43 m/s, `ChainModel.landing_speed`) with knee 20° and hip 25° flexed, on
     shod contacts (10× softer than the jump's bare ones); the extensors brace in 50 ms, the
-    knee flexes to ≈45° within 0.1 s and the body comes to rest over its feet, hip flexed
-    ≈56°. The impact loads the contacts at their stiffest: the ground force peaks at ≈10
-    body weights 14 ms after touchdown."""
+    knee flexes to ≈54° within 0.1 s and the body comes to rest over its feet, hip flexed
+    ≈57°. The impact loads the contacts at their stiffest: the ground force peaks at ≈9
+    body weights 13 ms after touchdown."""
     jump = squat_jump()
     landing = {"foot_ground": 62.28, "ankle": 108.0, "knee": 20.0, "hip": -25.0}  # deg
     joints = tuple(replace(j, initial_angle=math.radians(landing[j.name])) for j in jump.joints)
     # (brace level, hold level): from the standing level to the brace level in 50 ms from
     # touchdown, held 30 ms, to the hold level in 100 ms (at 180 ms)
-    levels = {"plantarflexors": (0.78, 0.18), "knee_extensors": (0.37, 0.02),
-              "hip_extensors": (0.19, 0.19)}
-    antagonists = {"dorsiflexors": 0.25, "knee_flexors": 0.11, "hip_flexors": 0.11}
+    levels = {"plantarflexors": (0.71, 0.17), "knee_extensors": (0.39, 0.02),
+              "hip_extensors": (0.2, 0.2)}
+    # antagonists: from equilibrium (whichever side a subject's stand needs) in 50 ms
+    antagonists = {"dorsiflexors": 0.05, "knee_flexors": 0.12, "hip_flexors": 0.12}
     units = tuple(replace(u, activation=ActivationProfile(None, (
         Ramp(0.0, 0.05, levels[u.name][0]), Ramp(0.03, 0.1, levels[u.name][1]))))
-        if u.name in levels else replace(u, activation=ActivationProfile(antagonists[u.name]))
+        if u.name in levels else replace(u, activation=ActivationProfile(None, (
+            Ramp(0.0, 0.05, antagonists[u.name]),)))
         for u in jump.units)
     shod = tuple(replace(c, stiffness=5e5) for c in jump.contacts)
     return jump.replace(
@@ -355,10 +357,11 @@ def drop_landing() -> ChainModel:
             "Touchdown from a 0.3 m drop: 2.43 m/s straight down, both contacts touching at "
             "once (a flat-footed landing), in the posture of a static stand with the knee 20 "
             "and hip 25 deg flexed (ankle 108 deg) and the units as they would stand there.",
-            "Extensors from their standing levels in 50 ms from touchdown to a brace "
-            "(plantarflexors 0.78, knee extensors 0.37, hip extensors 0.19), held 30 ms, then "
-            "in 100 ms to a hold (0.18, 0.02, 0.19); antagonists at 0.25 (dorsiflexors) and "
-            "0.11 (knee and hip flexors). Levels chosen by CMA-ES (est.; "
+            "Every unit from its standing level (equilibrium: the side a stand needs carries "
+            "it, the other rests) in 50 ms from touchdown: extensors to a brace "
+            "(plantarflexors 0.71, knee extensors 0.39, hip extensors 0.2), held 30 ms, then "
+            "in 100 ms to a hold (0.17, 0.02, 0.2); antagonists to 0.05 (dorsiflexors) and "
+            "0.12 (knee and hip flexors). Levels chosen by CMA-ES (est.; "
             "scripts/tune_drop_landing.py) so that the body "
             "absorbs the fall without an end stop or a bounce and comes to rest over its feet; "
             "not fitted to a recorded landing, whose peak forces (often 3-6 body weights, "
