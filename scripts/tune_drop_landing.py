@@ -32,7 +32,7 @@ from dataclasses import replace
 import numpy as np
 
 import torquesim as ts
-from torquesim.model.activation import ActivationProfile, Ramp
+from torquesim.model.presets import landing_activation
 
 EXTENSORS = ("plantarflexors", "knee_extensors", "hip_extensors")
 NAMES = ("plantarflexors_brace", "knee_extensors_brace", "hip_extensors_brace",
@@ -45,18 +45,11 @@ LOW, HIGH = 0.02, 1.0
 def landing(x) -> ts.ChainModel:
     """The preset with the levels ``x`` (in the order of `NAMES`)."""
     model = ts.load_model("builtin:drop-landing")
-    brace = dict(zip(EXTENSORS, x[:3], strict=True))
-    hold = dict(zip(EXTENSORS, x[3:6], strict=True))
-    units = []
-    for unit in model.units:
-        if unit.name in brace:
-            profile = ActivationProfile(None, (Ramp(0.0, 0.05, float(brace[unit.name])),
-                                               Ramp(0.03, 0.1, float(hold[unit.name]))))
-        else:  # from equilibrium (the side the stand needs, else 0) to its level in 50 ms
-            profile = ActivationProfile(None, (Ramp(0.0, 0.05, float(
-                x[7] if unit.name == "dorsiflexors" else x[6])),))
-        units.append(replace(unit, activation=profile))
-    return model.replace(units=tuple(units))
+    levels = {name: (float(x[k]), float(x[k + 3])) for k, name in enumerate(EXTENSORS)}
+    levels |= {"dorsiflexors": (float(x[7]),), "knee_flexors": (float(x[6]),),
+               "hip_flexors": (float(x[6]),)}
+    return model.replace(units=tuple(replace(u, activation=landing_activation(levels[u.name]))
+                                     for u in model.units))
 
 
 def score(x) -> float:

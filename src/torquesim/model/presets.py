@@ -324,6 +324,23 @@ def squat_jump_biarticular() -> ChainModel:
         "and flies 0.25 m.",))
 
 
+#: The drop landing's levels per unit: (brace, hold) for an extensor, (level,) for an
+#: antagonist (`landing_activation`; chosen by scripts/tune_drop_landing.py).
+LANDING_LEVELS = {"plantarflexors": (0.71, 0.17), "knee_extensors": (0.39, 0.02),
+                  "hip_extensors": (0.2, 0.2), "dorsiflexors": (0.05,),
+                  "knee_flexors": (0.12,), "hip_flexors": (0.12,)}
+
+
+def landing_activation(levels: tuple[float, ...]) -> ActivationProfile:
+    """A drop-landing unit's activation: from its standing level (equilibrium: the side a
+    stand needs carries it, the other rests at 0) to ``levels[0]`` in 50 ms from touchdown;
+    with a second level, held 30 ms, then to ``levels[1]`` in 100 ms (at 180 ms)."""
+    ramps = (Ramp(0.0, 0.05, levels[0]),)
+    if len(levels) > 1:
+        ramps += (Ramp(0.03, 0.1, levels[1]),)
+    return ActivationProfile(None, ramps)
+
+
 def drop_landing() -> ChainModel:
     """A drop landing: the squat jump's body and units landing flat-footed from a 0.3 m drop
     (touchdown at 2.43 m/s, `ChainModel.landing_speed`) with knee 20° and hip 25° flexed, on
@@ -334,17 +351,8 @@ def drop_landing() -> ChainModel:
     jump = squat_jump()
     landing = {"foot_ground": 62.28, "ankle": 108.0, "knee": 20.0, "hip": -25.0}  # deg
     joints = tuple(replace(j, initial_angle=math.radians(landing[j.name])) for j in jump.joints)
-    # (brace level, hold level): from the standing level to the brace level in 50 ms from
-    # touchdown, held 30 ms, to the hold level in 100 ms (at 180 ms)
-    levels = {"plantarflexors": (0.71, 0.17), "knee_extensors": (0.39, 0.02),
-              "hip_extensors": (0.2, 0.2)}
-    # antagonists: from equilibrium (whichever side a subject's stand needs) in 50 ms
-    antagonists = {"dorsiflexors": 0.05, "knee_flexors": 0.12, "hip_flexors": 0.12}
-    units = tuple(replace(u, activation=ActivationProfile(None, (
-        Ramp(0.0, 0.05, levels[u.name][0]), Ramp(0.03, 0.1, levels[u.name][1]))))
-        if u.name in levels else replace(u, activation=ActivationProfile(None, (
-            Ramp(0.0, 0.05, antagonists[u.name]),)))
-        for u in jump.units)
+    units = tuple(replace(u, activation=landing_activation(LANDING_LEVELS[u.name]))
+                  for u in jump.units)
     shod = tuple(replace(c, stiffness=5e5) for c in jump.contacts)
     return jump.replace(
         name="drop-landing", joints=joints, units=units, contacts=shod, duration=0.3,
