@@ -364,7 +364,7 @@ def dropped_bar_energy(run, contacts) -> tuple[np.ndarray, np.ndarray]:
         power = (c[f"grf_y_{contact.point}"] - contact.stiffness * depth**contact.exponent) \
             * (-vy) - c[f"grf_x_{contact.point}"] * vx
         dissipated += np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1])
-                                                       * run.step)])
+                                                       * np.diff(run.time))])
     return energy, dissipated
 
 

@@ -37,6 +37,7 @@ import numpy as np
 from ..model.body import GROUND_OUTPUTS, body_work_size, ground_kinds, ground_outputs
 from ..model.jit import njit
 from ..solvers import fixed_step as fs
+from ..solvers import step_loop
 from ..solvers.rates import unit_excitation
 from .parameters import PER_UNIT, RAMPS_PER_UNIT
 
@@ -110,7 +111,7 @@ def simulate_population(first, count, population, levels, kinds, system, run, gr
                         results):
     """Simulate the ``count`` rows from row ``first`` of ``population`` (m × 9U ramp vectors,
     `fitting.parameters`; fewer at its end) with the step loop of the kinds ``kinds``
-    (`fixed_step.StepKinds`) on ``system`` = the packed (segments, joints, units), unit u
+    (`step_loop.StepKinds`) on ``system`` = the packed (segments, joints, units), unit u
     starting at ``levels[u]``; ``run`` = (packed coupling, y0, step (s), number of steps,
     whether the muscles are explicit, the body's `ground_kinds`). Fills ``results`` =
     (states, activations, outputs, status), per candidate j: ``states[j]`` (steps + 1 rows of y),
@@ -135,7 +136,7 @@ def simulate_population(first, count, population, levels, kinds, system, run, gr
         for u in range(levels.shape[0]):
             pack_profile(population[j], u * PER_UNIT, levels[u], profiles[u])
         stats = np.zeros(fs.STATS_SIZE)
-        fs.run_step_loop(kinds, (seg_j, joints_j, units_j, profiles), y0_j, step, n_steps,
+        step_loop.run_step_loop(kinds, (seg_j, joints_j, units_j, profiles), y0_j, step, n_steps,
                          coupling_j, states[j], stats)
         flat = profiles.ravel()
         for u in range(levels.shape[0]):
@@ -185,7 +186,7 @@ def run_population(rows, kinds, coupling, y0, step: float, n_steps: int, arrays,
                    explicit_muscles: bool, ground_steps, activation_steps: int = 0):
     """`simulate_population` of the ramp vectors ``rows`` (at most `POPULATION_CHUNK`) on the
     packed ``arrays`` (segments, joints, units) with the step loop of the kinds ``kinds``
-    (`fixed_step.StepKinds`), with its output arrays made here: returns
+    (`step_loop.StepKinds`), with its output arrays made here: returns
     (states, activations, ground outputs, status), the activations at the first
     ``activation_steps`` steps and the ground outputs at ``ground_steps`` (indices).
     The candidates run in Numba's number of threads (`numba.get_num_threads`, one in a Dask

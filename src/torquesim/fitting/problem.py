@@ -12,6 +12,7 @@ from ..model.activation import activation
 from ..model.chain import ChainModel, as_chain
 from ..model.presets import preset
 from ..solvers import fixed_step as fs
+from ..solvers import step_loop
 from ..solvers.techniques import (
     FIT_METHODS,
     default_coupling,
@@ -179,7 +180,7 @@ class FitProblem:
         self.coupling = default_coupling(self.method)
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_kinds = fs.model_step_kinds(base, runs_monolithic(self.method),
+        self.step_kinds = step_loop.model_step_kinds(base, runs_monolithic(self.method),
                                               self.coupling.to_array())
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())

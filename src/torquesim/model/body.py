@@ -465,6 +465,31 @@ def _point_direction(n, seg, work, row, k, vertical):
 
 
 @njit(cache=True, error_model="numpy")
+def contact_heights(y, n, seg, joints, heights):
+    """Height above the ground (m) of every contact point of the free-base body ``seg`` at
+    the coordinates y[:n], into heights[c] (contact after contact): the kinematics of
+    `_free_base_terms`' points alone (the base's y, then each ancestor's lever and the
+    point's distance and offset on its segment), for the error-controlled loop's events
+    (take-off and touchdown: a height changing sign). Absolute angles φ_k = q_k + offset +
+    φ_parent."""
+    n_seg = n - 2
+    phi = np.empty(n_seg)
+    for k in range(n_seg):
+        p = int(seg[k, SEG_PARENT_COLUMN])
+        phi[k] = joints[(2 + k) * JOINT_ROW_SIZE + ZERO_OFFSET] + y[2 + k] \
+            + (phi[p] if p >= 0 else 0.0)
+    for c in range(n_seg, seg.shape[0]):
+        k = int(seg[c, CONTACT_SEGMENT])
+        height = y[1] - seg[c, CONTACT_DISTANCE] * math.cos(phi[k]) \
+            + seg[c, CONTACT_OFFSET] * math.sin(phi[k])
+        s = int(seg[k, SEG_PARENT_COLUMN])
+        while s >= 0:
+            height -= seg[s, SEG_LEVER_COLUMN + k] * math.cos(phi[s])
+            s = int(seg[s, SEG_PARENT_COLUMN])
+        heights[c - n_seg] = height
+
+
+@njit(cache=True, error_model="numpy")
 def contact_time_constant(y, n, seg, work):
     """Time constant τ = 1/|λ| (s) of the ground contacts together, for the stability guard,
     and the index (among the contacts) of the one that contributes most; (+inf, 0) off the

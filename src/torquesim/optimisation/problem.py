@@ -51,7 +51,7 @@ from ..fitting.parameters import (
 )
 from ..fitting.problem import DEFAULT_METHOD, default_step, fit_step
 from ..model.chain import ChainModel, as_chain
-from ..solvers import fixed_step as fs
+from ..solvers import step_loop
 from ..solvers.choice import choose_technique
 from ..solvers.techniques import (
     FIT_METHODS,
@@ -288,7 +288,7 @@ class OptimiseProblem:
         self.coupling = default_coupling(self.method)
         packed = self.model3.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
-        self.step_kinds = fs.model_step_kinds(start, runs_monolithic(self.method),
+        self.step_kinds = step_loop.model_step_kinds(start, runs_monolithic(self.method),
                                               self.coupling.to_array())
         self.ground = bool(start.contacts) and start.base == "free"
         self.joint_names = tuple(j.name for j in start.joints)

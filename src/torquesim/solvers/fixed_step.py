@@ -22,7 +22,6 @@ step/τ ≤ `RK4_STABILITY_LIMIT`.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 from numba import types
@@ -38,15 +37,12 @@ from ..model.body import (
     SEG_PARENT_COLUMN,
     SEG_SERIAL_COLUMN,
     SPEED_LIMIT,
-    BodyKinds,
     body_jacobian_size,
-    body_kinds,
     body_work_size,
     contact_time_constant,
     force_jacobians,
     passive_stiffness,
     single_segment_acceleration,
-    switch,
     tree_accelerations,
 )
 from ..model.jit import njit
@@ -59,6 +55,7 @@ from ..model.unit_row import (
 )
 from . import tableaus  # the module: coupling_layout's SDIRK2 is the muscle solver's code
 from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
+    ABSOLUTE_TOLERANCE,
     BODY_FIRST,
     BODY_SOLVER,
     COUPLING_SIZE,
@@ -103,10 +100,17 @@ from .sdirk import unit_implicit_ce_velocity
 STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEEPS, \
     NEWTON_ITERATIONS, IMPLICIT_SOLVES, COUPLING_TORQUE, COUPLING_TORQUE_MAX, COUPLING_TIME, \
     COUPLING_ANGLE, CONTACT_RATIO, CONTACT_TIME, CONTACT_INDEX, BODY_JACOBIANS = range(18)
-STATS_SIZE = 18
+# The error-controlled loop's (`error_control`): steps rejected (by the error test or to
+# locate an event), output rows written, the smallest and largest accepted step (s), the
+# events located and the times of the first EVENT_SLOTS of them (s).
+REJECTED_STEPS, ROWS, SMALLEST_STEP, LARGEST_STEP, EVENTS = range(18, 23)
+EVENT_TIMES = 23
+EVENT_SLOTS = 16
+STATS_SIZE = EVENT_TIMES + EVENT_SLOTS
 # Status codes. DIVERGED: the state left the physically possible range (a joint more than a
 # full turn beyond its end stops, or faster than its speed limit, ChainModel.speed_limits).
-OK, NON_FINITE, DIVERGED = 0, 1, 2
+# STEP_TOO_SMALL: the error-controlled loop's step fell below its smallest.
+OK, NON_FINITE, DIVERGED, STEP_TOO_SMALL = 0, 1, 2, 3
 #: Real-axis stability limit of classical RK4: |λ|·h ≤ 2.785 (where |R(−x)| of its tableau
 #: reaches 1, `tableaus.RK4.real_stability_limit`; tests/test_tableaus.py checks the two).
 RK4_STABILITY_LIMIT = 2.785293563405282
@@ -781,100 +785,6 @@ def _other_switch_of(switch):
     if isinstance(switch, types.NoneType):
         return lambda switch: True
     return lambda switch: None
-
-
-class StepKinds(NamedTuple):
-    """What a run's step loop is made of, each kind True or None (`switch`), the body's a
-    `BodyKinds` or None: a loop given None for a kind drops the code of that kind when it
-    compiles, and a run compiles only its own code (a fit one loop and one muscle solver,
-    not all of them). `step_kinds` makes them; `_chosen_loop` passes them to the loop."""
-
-    #: The monolithic loop (`rk4_monolithic`; the every-stage exchange too), else the
-    #: partitioned one (`rk4_partitioned`): True or None.
-    monolithic: bool | None
-    #: The body's `BodyKinds`, None for one segment on a fixed pivot (q̈ one division;
-    #: `check_body`).
-    body: BodyKinds | None
-    #: Some unit has an activation state (`check_unit_kinds`): True or None.
-    dynamics: bool | None
-    #: The partitioned loop's muscle part by SDIRK2 (IMEX), else by RK4 (None; None in the
-    #: monolithic loop): each compiles only its kind of stage (`_muscle_part`).
-    implicit_muscles: bool | None
-    #: The partitioned loop's body part by ROS2, linearly implicit in its stiff forces
-    #: (`_body_ros2`), else by RK4 (None; None in the monolithic loop).
-    implicit_body: bool | None
-
-
-def step_kinds(monolithic: bool, seg, n_coordinates: int, coupling,
-               dynamics: bool = False) -> StepKinds:
-    """The `StepKinds` of the monolithic (else partitioned, under the packed ``coupling``)
-    technique on the packed body ``seg`` of ``n_coordinates`` (`ChainModel.n_coordinates`)
-    whose units have activation dynamics or not (``dynamics``: any unit has;
-    `ChainModel.has_activation_dynamics`). The partitioned technique exchanging at every
-    stage is monolithic RK4 (docs/model.md §4) and runs the monolithic loop."""
-    monolithic = monolithic or int(coupling[ORDER]) == EVERY_STAGE
-    implicit = not monolithic and int(coupling[MUSCLE_SOLVER]) == SDIRK2
-    implicit_body = not monolithic and int(coupling[BODY_SOLVER]) == ROS2
-    return StepKinds(switch(monolithic), body_kinds(seg, n_coordinates), switch(dynamics),
-                     switch(implicit), switch(implicit_body))
-
-
-def model_step_kinds(model, monolithic: bool, exchange) -> StepKinds:
-    """`step_kinds` of a `ChainModel`: its body and activation dynamics read off the
-    model."""
-    return step_kinds(monolithic, model.segment_array(), model.n_coordinates, exchange,
-                      model.has_activation_dynamics)
-
-
-def kind_on(kinds, name: str) -> bool:
-    """Whether kind ``name`` of ``kinds`` (`StepKinds`) is on: read off the value (Python
-    callers) or off its Numba type while compiling (`_run_step_loop_compiled`)."""
-    if isinstance(kinds, types.BaseNamedTuple):
-        return not isinstance(kinds.types[kinds.fields.index(name)], types.NoneType)
-    return getattr(kinds, name) is not None
-
-
-def _chosen_loop(kinds):
-    """The call of the step loop the kinds choose, with the body's kinds and the units'
-    switches as its arguments (`kind_on`): the same function runs from Python (calling the
-    chosen loop's dispatcher) and is compiled for compiled callers (`_run_step_loop_compiled`).
-    The loop gets the kinds typed bool or None as a Python True is (a literal True would
-    compile a second copy of the loop for compiled callers, measured: the jump's IMEX loop
-    compiled twice, 11–18 s each)."""
-    if kind_on(kinds, "monolithic"):
-        def monolithic(kinds, system, y0, h, n_steps, coupling, out, stats):
-            rk4_monolithic(system, y0, h, n_steps, out, stats, kinds.body, kinds.dynamics)
-        return monolithic
-
-    def partitioned(kinds, system, y0, h, n_steps, coupling, out, stats):
-        for i in range(y0.shape[0]):  # (a loop: a slice assignment compiles a shape check)
-            out[0, i] = y0[i]
-        rk4_partitioned(system, h, n_steps, coupling, out, stats, kinds.body, kinds.dynamics,
-                        kinds.implicit_muscles, kinds.implicit_body)
-    return partitioned
-
-
-def run_step_loop(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """Run the step loop of the kinds ``kinds`` (`StepKinds`) on the packed model ``system``
-    = (segments, joints, units, profiles) (`PackedChain`): `rk4_monolithic` or
-    `rk4_partitioned` under the packed ``coupling``, for one segment or a chain, and in the
-    partitioned loop its muscle solver; y0 the initial state, h the step (s), ``out``
-    (n_steps + 1 rows of y) and ``stats`` (`new_stats`) filled. Only the chosen code is
-    compiled. From Python the kinds choose in Python (`_chosen_loop`), which calls the chosen
-    loop's dispatcher; compiled callers (the population kernel) get the chosen loop's call
-    inlined (`_run_step_loop_compiled`), so that no wrapper is compiled around it: each
-    compiled layer links and optimises the loop again (0.6–0.8 s of a cold first fit per
-    layer). (A dispatcher passed as an argument would choose as well, but Numba's disk cache
-    misses such compilations in every new process; an integer made literal compiles every
-    branch once before it specialises.)"""
-    _chosen_loop(kinds)(kinds, system, y0, h, n_steps, coupling, out, stats)
-
-
-@overload(run_step_loop, inline="always")
-def _run_step_loop_compiled(kinds, system, y0, h, n_steps, coupling, out, stats):
-    """`run_step_loop` for compiled callers: the loop chosen by the kinds' Numba types while
-    compiling, so that only the chosen loop is typed and compiled."""
-    return _chosen_loop(kinds)
 
 
 def new_stats() -> np.ndarray:

@@ -13,15 +13,20 @@ from ..model.body import body_kinds
 from ..model.chain import ChainModel, as_chain
 from ..model.elbow import default_model
 from . import fixed_step as fs
+from . import step_loop
 from .coupling import Coupling
+from .coupling_layout import ABSOLUTE_TOLERANCE, MAX_STEP, RELATIVE_TOLERANCE
+from .error_control import MIN_STEP as MIN_CONTROLLED_STEP
 from .rates import compiled_derivative
 from .result import RunCost, SimulationResult, StabilityReport
 from .techniques import (
+    ERROR_CONTROLLED_METHODS,
     FIXED_STEP_METHODS,
     METHODS,
     SCIPY_METHODS,
     default_coupling,
     explicit_muscles,
+    method_technique,
     nominal_order,
     runs_monolithic,
     scipy_solver,
@@ -37,6 +42,10 @@ REFERENCE_ATOL = 1.0e-12
 #: 1.1 s, at 1e-10, the two within 3e-10 rad of each other and of RK4 at 2.5 µs.
 GROUND_REFERENCE_ATOL = 1.0e-10
 DEFAULT_OUTPUT_STEP = 1.0e-3
+#: The error-controlled technique's default angle tolerance, rad (`error_control`).
+ERROR_CONTROL_ATOL = 1.0e-4
+#: The error-controlled technique's largest step, s (`largest_step`).
+MAX_CONTROLLED_STEP = 10e-3
 #: Default accuracy check of fixed-step runs in `simulate`: warn when the estimated max
 #: angle error exceeds this (rad; 0.5°).
 DEFAULT_TOLERANCE = math.radians(0.5)
@@ -147,6 +156,16 @@ def simulate(
         if tolerance is not None and result.success:
             result = _with_error_estimate(result, model, packed, y0, method, coupling,
                                           tolerance)
+    elif method in ERROR_CONTROLLED_METHODS:
+        atol = ERROR_CONTROL_ATOL if atol is None else atol
+        rtol = 0.0 if rtol is None else rtol
+        check_range("atol", atol, 1e-12, 1.0, unit="rad")
+        check_range("rtol", rtol, 0.0, 1.0)
+        result = _error_controlled(model, packed, y0, method_technique(method).coupling, atol,
+                                   rtol, output_step)
+        if tolerance is not None and result.success:
+            check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
+            result = _with_controlled_estimate(result, model, packed, y0, method, tolerance)
     elif (name := scipy_solver(method)) is not None:
         if name not in SCIPY_METHODS:
             allowed = ", ".join(f"scipy:{m}" for m in SCIPY_METHODS)
@@ -187,8 +206,8 @@ def _fixed_step(model, packed, y0, method, step, coupling) -> SimulationResult:
         label, exchange = coupling.label(), coupling.to_array()
     else:
         label, exchange = method, np.zeros(fs.COUPLING_SIZE)  # unused
-    kinds = fs.model_step_kinds(model, not partitioned, exchange)
-    run = fs.run_step_loop  # (from Python: only the chosen loop is compiled)
+    kinds = step_loop.model_step_kinds(model, not partitioned, exchange)
+    run = step_loop.run_step_loop  # (from Python: only the chosen loop is compiled)
     # A zero-step call compiles the loop (or loads it from the disk cache) outside the timing.
     run(kinds, tuple(packed), y0, float(step), 0, exchange, out, fs.new_stats())
     start = _time.perf_counter()
@@ -462,6 +481,89 @@ def _with_tighter_estimate(result, model, packed, y0, method, name, tolerance):
     return _with_estimate(result, estimate, tolerance, how,
                           f"use smaller rtol and atol{explicit}, or method 'reference'",
                           f"the run {how} failed")
+
+
+#: The accuracy check of an error-controlled run: the run again at an atol this many times
+#: tighter (`_with_controlled_estimate`).
+CONTROLLED_TIGHTER = 4.0
+
+
+def _with_controlled_estimate(result, model, packed, y0, method, tolerance):
+    """``result`` (an error-controlled run) with an estimate of its max angle error (rad) and
+    a warning above ``tolerance``: max|q − q_tight|·c/(c − 1) against the run at atol
+    c = `CONTROLLED_TIGHTER` times tighter, the global error being proportional to atol
+    (tests/test_error_control.py measures it); the tighter run failing, infinite."""
+    c = CONTROLLED_TIGHTER
+    settings = result.settings
+    tight = _error_controlled(model, packed, y0, method_technique(method).coupling,
+                              settings["atol"] / c, settings["rtol"] / c,
+                              settings["output_step"])
+    n = min(tight.time.size, result.time.size)  # (the same grid)
+    estimate = float(np.max(np.abs(result.q[:n] - tight.q[:n]))) * c / (c - 1.0) \
+        if tight.success else math.inf
+    return _with_estimate(result, estimate, tolerance, f"against atol {c:g}x tighter",
+                          "use a smaller atol, or method 'reference'",
+                          f"the run at atol {c:g}x tighter failed")
+
+
+def largest_step(model: ChainModel) -> float:
+    """The error-controlled loop's largest step, s: `RAMP_RESOLUTION` of the shortest
+    activation ramp (so that no ramp falls between a step's stage times), at most
+    `MAX_CONTROLLED_STEP` and a tenth of the duration."""
+    ramps = [r.duration for unit in model.units for r in unit.activation.ramps]
+    return min([MAX_CONTROLLED_STEP, 0.1 * model.duration,
+                *(RAMP_RESOLUTION * r for r in ramps if r > 0.0)])
+
+
+def _error_controlled(model, packed, y0, coupling, atol, rtol, output_step) -> SimulationResult:
+    """A run of the error-controlled loop (`error_control`) at the angle tolerance ``atol``
+    (rad) and ``rtol``, written on the grid of ``output_step``."""
+    n = step_count(model.duration, output_step, "output_step")
+    out = np.empty((n + 1, model.state_size))
+    stats = fs.new_stats()
+    control = coupling.to_array()
+    control[ABSOLUTE_TOLERANCE] = atol
+    control[RELATIVE_TOLERANCE] = rtol
+    control[MAX_STEP] = largest_step(model)
+    kinds = step_loop.model_step_kinds(model, False, control)
+    run = step_loop.run_step_loop
+    run(kinds, tuple(packed), y0, float(output_step), 0, control, out, fs.new_stats())
+    start = _time.perf_counter()
+    run(kinds, tuple(packed), y0, float(output_step), n, control, out, stats)
+    wall = _time.perf_counter() - start
+    rows = int(stats[fs.ROWS])
+    times = np.arange(rows) * output_step
+    label = "imex-ros2-adaptive"
+    stability = StabilityReport(float(stats[fs.WORST_RATIO]), float(stats[fs.WORST_TIME]),
+                                model.units[int(stats[fs.WORST_UNIT])].name
+                                if model.units else "", float(stats[fs.LARGEST_STEP]),
+                                math.inf)
+    status, message = "success", ""
+    if stats[fs.STATUS] != fs.OK:
+        at = float(stats[fs.WORST_TIME])
+        what = {fs.NON_FINITE: "the state went non-finite",
+                fs.STEP_TOO_SMALL: f"the error control's step fell below "
+                                   f"{MIN_CONTROLLED_STEP:g} s"}.get(
+            int(stats[fs.STATUS]), f"the state {_out_of_range(model, out[max(rows - 1, 0)])}")
+        status = "failed"
+        message = (f"{label} at atol {atol:g} rad failed at t = {at:.6g} s: {what}; use a "
+                   "larger atol (the step then stays larger) or method 'reference'")
+    cost = RunCost(int(stats[fs.STEPS]), int(stats[fs.NFEV_BODY]), int(stats[fs.NFEV_MUSCLE]),
+                   wall, newton_iterations=int(stats[fs.NEWTON_ITERATIONS]),
+                   implicit_solves=int(stats[fs.IMPLICIT_SOLVES]),
+                   jacobians=int(stats[fs.BODY_JACOBIANS]),
+                   lu_decompositions=int(stats[fs.BODY_JACOBIANS]))
+    events = int(stats[fs.EVENTS])
+    settings = {"rtol": rtol, "atol": atol, "output_step": output_step,
+                "max_step": float(control[MAX_STEP]),
+                "rejected_steps": int(stats[fs.REJECTED_STEPS]),
+                "smallest_step": float(stats[fs.SMALLEST_STEP]),
+                "largest_step": float(stats[fs.LARGEST_STEP]),
+                "events": events,
+                "event_times": [float(v) for v in
+                                stats[fs.EVENT_TIMES:fs.EVENT_TIMES + min(events, fs.EVENT_SLOTS)]]}
+    return SimulationResult(model, packed, times, out[:rows], label, None, cost, stability,
+                            status, message, settings)
 
 
 def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> SimulationResult:

@@ -34,7 +34,7 @@ class Technique:
         How the body (q, q̇) and muscle (θ_cc) equations are integrated, in words.
     order : int or None
         Global order of accuracy on smooth problems (declared; measured by the tests); None
-        for the adaptive solvers.
+        for SciPy's solvers; the error-controlled technique's is its step's.
     implicit : str
         Which part is solved implicitly: "none", "muscles", "muscles, end stops, contacts"
         (the body part linearly implicit in those forces) or "all".
@@ -42,6 +42,9 @@ class Technique:
         Run by ``torquesim compare`` by default.
     headline : bool
         Named in the one-line summaries of ``compare --vary``.
+    error_controlled : bool
+        A compiled technique whose steps an error estimate chooses (`error_control`): run at
+        an angle tolerance (``atol``), not a step.
     """
 
     name: str
@@ -52,10 +55,13 @@ class Technique:
     implicit: str = "none"
     in_study: bool = True
     headline: bool = False
+    error_controlled: bool = False
 
     @property
     def adaptive(self) -> bool:
-        return scipy_solver(self.method) is not None
+        """Its steps chosen by an error estimate (SciPy's solvers and ``imex-ros2-adaptive``):
+        run at a tolerance, not a step."""
+        return self.error_controlled or scipy_solver(self.method) is not None
 
 
 def scipy_solver(method: str) -> str | None:
@@ -96,6 +102,10 @@ TECHNIQUES: tuple[Technique, ...] = (
               "body ROS2 (linearly implicit in the end stops and ground contacts), muscles "
               "implicit SDIRK2; body first, linear torque predictor", 2,
               "muscles, end stops, contacts"),
+    Technique("imex-ros2-adaptive", "imex-ros2-adaptive", IMEX_ROS2,
+              "imex-ros2's parts at steps chosen by an embedded error estimate (PI "
+              "controller), take-off and touchdown located as events", 2,
+              "muscles, end stops, contacts", error_controlled=True),
     Technique("DOP853", "scipy:DOP853", None,
               "one state vector, SciPy's adaptive explicit Runge-Kutta of order 8"),
     Technique("Radau", "scipy:Radau", None,
@@ -107,20 +117,24 @@ TECHNIQUES: tuple[Technique, ...] = (
 #: The fixed-step methods `simulate` takes, each the name of its registered default
 #: technique (the adaptive ones are "reference" and "scipy:NAME").
 FIXED_STEP_METHODS = tuple(t.method for t in TECHNIQUES if not t.adaptive and t.name == t.method)
+#: The error-controlled methods (compiled; run at a tolerance, `error_control`).
+ERROR_CONTROLLED_METHODS = tuple(t.method for t in TECHNIQUES if t.error_controlled)
 #: Every ``method`` name `simulate` accepts besides ``scipy:NAME``.
-METHODS = (*FIXED_STEP_METHODS, "reference")
+METHODS = (*FIXED_STEP_METHODS, *ERROR_CONTROLLED_METHODS, "reference")
 #: The methods a fit, an optimisation or a sweep may use (fixed step: the population runs in
 #: compiled code), the IMEX technique, their default, first.
 FIT_METHODS = tuple(sorted(FIXED_STEP_METHODS, key=lambda m: m != "imex"))
 
 
 def method_technique(method: str) -> Technique:
-    """The registered technique a fixed-step ``method`` runs as when no coupling is given
-    (``partitioned``: Jacobi, zero-order hold; ``imex``: `IMEX`)."""
+    """The registered technique a compiled ``method`` (fixed-step or error-controlled) runs
+    as when no coupling is given (``partitioned``: Jacobi, zero-order hold; ``imex``:
+    `IMEX`)."""
     for t in TECHNIQUES:
-        if t.name == method and t.method == method and not t.adaptive:
+        if t.name == method and t.method == method and scipy_solver(method) is None:
             return t
-    raise ValueError(f"{method!r} is not a fixed-step method ({', '.join(FIXED_STEP_METHODS)})")
+    raise ValueError(f"{method!r} is not a compiled method "
+                     f"({', '.join(FIXED_STEP_METHODS + ERROR_CONTROLLED_METHODS)})")
 
 
 def runs_monolithic(method: str) -> bool:

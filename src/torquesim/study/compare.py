@@ -18,12 +18,16 @@ from ..errors import ModelError
 from ..model.chain import ChainModel, as_chain
 from ..solvers import simulate
 from ..solvers.simulation import step_count
-from ..solvers.techniques import Technique, runs_monolithic, study_techniques
+from ..solvers.techniques import Technique, runs_monolithic, scipy_solver, study_techniques
 
 DEFAULT_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.2e-3, 0.1e-3, 0.05e-3)
 #: A default step list keeps at least this many steps (`default_steps`).
 MIN_DEFAULT_STEPS = 6
 DEFAULT_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
+#: The angle tolerances (atol, rad) of the error-controlled techniques, spaced as the steps
+#: (1, 2, 5 per decade): their global error follows atol, and a decade of it costs √10 in
+#: steps (order 2), so a finer ladder than rtol's.
+CONTROLLED_TOLERANCES = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6)
 ACCURACY_TARGETS_DEG = (1.0, 0.1, 0.01, 0.001)
 #: A run whose max angle error exceeds this is counted unstable: RK4 past its stability limit
 #: stays bounded (the clamps), so "bounded" is not enough.
@@ -150,7 +154,8 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
     for h in steps:
         step_count(model.duration, h)
     reference = reference_solution(model, initial_state)
-    jobs = [(t, s) for t in techniques for s in (tolerances if t.adaptive else steps)]
+    jobs = [(t, s) for t in techniques for s in (
+        CONTROLLED_TOLERANCES if t.error_controlled else tolerances if t.adaptive else steps)]
     rows: list[dict] = []
     times: list[list[float]] = [[] for _ in jobs]
     total = repeats * len(jobs)
@@ -184,7 +189,9 @@ def _run(model, tech: Technique, setting: float, initial_state):
     """One run of the study: ``tech`` at step (or rtol) ``setting``, no advice and no accuracy
     check (the study measures the error against its reference itself)."""
     kwargs = dict(initial_state=initial_state, check=False, advise=False, tolerance=None)
-    if tech.adaptive:
+    if tech.error_controlled:
+        kwargs.update(atol=setting, output_step=GRID)
+    elif tech.adaptive:
         kwargs.update(rtol=setting, atol=setting * 1e-3, output_step=GRID)
     else:
         kwargs.update(step=setting, coupling=tech.coupling)
@@ -247,7 +254,8 @@ def calibrate(rows: list[dict]) -> dict[str, float]:
     coefficients: dict[str, float] = {}
     for kind, work, adaptive in (("fixed", FIXED_STEP_WORK, False),
                                  ("scipy", ADAPTIVE_WORK, True)):
-        mine = [r for r in rows if (r["h_s"] is None) == adaptive and r.get("wall_time_s")]
+        mine = [r for r in rows if (scipy_solver(r["method"]) is not None) == adaptive
+                and r.get("wall_time_s")]
         if not mine:
             continue
         fit = [r for r in mine if r.get("calibration_run")] or mine

@@ -1,0 +1,135 @@
+"""The error-controlled technique ``imex-ros2-adaptive`` (issue 33, item 2): imex-ros2's step
+at steps an embedded error estimate chooses, take-off and touchdown located as events, the
+state written on a fixed grid by interpolation. Measured here: its order from the work
+against the error, the global error following the tolerance, events against the analytic
+free fall, flight under gravity, impulse and momentum, the energy of a dropped passive body,
+and its own accuracy estimate."""
+
+import math
+
+import numpy as np
+import pytest
+
+import torquesim as ts
+from torquesim.errors import ModelError
+from torquesim.solvers.error_control import EVENT_TIME_TOLERANCE
+
+from .test_ground import G, dropped_bar, dropped_bar_energy
+
+METHOD = "imex-ros2-adaptive"
+
+
+@pytest.fixture(scope="module")
+def jump():
+    return ts.load_model("builtin:squat-jump")
+
+
+@pytest.fixture(scope="module")
+def jump_reference(jump):
+    return ts.simulate(jump, "reference")
+
+
+@pytest.fixture(scope="module")
+def jump_runs(jump):
+    """The jump at three angle tolerances, a decade apart."""
+    return {atol: ts.simulate(jump, METHOD, atol=atol, tolerance=None)
+            for atol in (1e-3, 1e-4, 1e-5)}
+
+
+def _max_error(run, reference) -> float:
+    return float(np.max(np.abs(run.q - reference.q)))
+
+
+def test_order_two_from_work_and_error_following_the_tolerance(jump_runs, jump_reference):
+    """Error against steps falls as N^−p with p ≈ 2 (the technique's declared order), and a
+    decade of atol moves the global error by a decade (3–30x: tolerance proportionality,
+    which the accuracy estimate relies on)."""
+    runs = [jump_runs[a] for a in (1e-3, 1e-4, 1e-5)]
+    errors = [_max_error(r, jump_reference) for r in runs]
+    steps = [r.cost.steps for r in runs]
+    order = -np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert 1.6 < order < 2.6, (order, errors, steps)
+    for coarse, fine in zip(errors, errors[1:], strict=False):
+        assert 3.0 < coarse / fine < 30.0, errors
+    assert math.degrees(errors[1]) < 0.05
+
+
+def test_steps_adapt_to_the_motion_and_events_end_steps(jump_runs):
+    """Small steps at the take-offs, large ones in flight: the step spans two decades, the
+    largest is the ramps' bound (a tenth of the shortest ramp), and the heel's and the toe's
+    take-offs are located, at atol 1e-4 and 1e-5 within 0.1 ms of each other (a tenth of the
+    output grid: the heel lifts slowly, so its time moves with the height error)."""
+    run = jump_runs[1e-4]
+    s = run.settings
+    assert s["largest_step"] == pytest.approx(s["max_step"])
+    assert s["largest_step"] / s["smallest_step"] > 100.0
+    assert s["events"] == 2
+    assert np.allclose(jump_runs[1e-5].settings["event_times"], s["event_times"], atol=1e-4)
+    take_off = run.ground_events().take_off
+    assert s["event_times"][-1] == pytest.approx(take_off, abs=run.time[1])
+
+
+def test_touchdown_of_a_falling_body_is_located_to_the_event_tolerance():
+    """The dropped bar (`dropped_bar`): before touching the ground it falls freely, and its
+    first contact point (on the base) touches down at √(2·h/g); the first event lies within
+    `EVENT_TIME_TOLERANCE` of it. Its energy falls by what the contacts dissipate."""
+    fine, contacts = dropped_bar()
+    model, y0 = fine.model, fine.states[0]
+    run = ts.simulate(model, METHOD, atol=1e-5, initial_state=y0, output_step=1e-5,
+                      tolerance=None)
+    heights = model.kinematics(y0[None, :3], y0[None, 3:6])["points"][0, :, 1]
+    first = min(math.sqrt(2.0 * h / G) for h in heights)
+    assert abs(run.settings["event_times"][0] - first) <= EVENT_TIME_TOLERANCE
+    assert run.settings["events"] >= 4  # touchdowns and bounces
+    energy, dissipated = dropped_bar_energy(run, contacts)
+    assert dissipated[-1] > 0.1
+    assert np.max(np.abs(energy + dissipated - energy[0])) < 1e-2 * energy[0]
+
+
+def test_flight_follows_gravity_and_impulse_matches_momentum(jump):
+    """In flight the centre of mass falls at g: its vertical speed over the whole flight
+    changes by −g·t within 1e-4 g·t, its height stays on the take-off's parabola within 1 mm;
+    over the jump the ground's impulse equals the momentum change within 1e-3 (the output
+    grid's trapezoid on interpolated states: not the fixed-step loops' 1e-6)."""
+    run = ts.simulate(jump, METHOD, atol=1e-5, output_step=1e-4, tolerance=None)
+    c = run.columns()
+    air = np.flatnonzero(c["grf_y"] == 0.0)
+    first, last = air[0] + 1, air[-1]
+    span = run.time[last] - run.time[first]
+    change = c["com_speed_y"][last] - c["com_speed_y"][first]
+    assert abs(change + G * span) < 1e-4 * G * span
+    t = run.time[first:last + 1] - run.time[first]
+    parabola = c["com_y"][first] + c["com_speed_y"][first] * t - 0.5 * G * t**2
+    assert np.max(np.abs(c["com_y"][first:last + 1] - parabola)) < 1e-3
+    mass = sum(s.total_mass for s in jump.segments)
+    net = c["grf_y"] - mass * G
+    impulse = np.concatenate([[0.0], np.cumsum(0.5 * (net[1:] + net[:-1]) * np.diff(run.time))])
+    momentum = mass * (c["com_speed_y"] - c["com_speed_y"][0])
+    assert np.max(np.abs(impulse - momentum)) < 1e-3 * np.abs(momentum).max()
+
+
+def test_the_accuracy_estimate_holds_and_warns(jump, jump_reference):
+    """simulate's check of an error-controlled run (against atol 4x tighter) is within 2x of
+    the true error, and a tolerance below it is warned about with what to change."""
+    run = ts.simulate(jump, METHOD, atol=1e-4, tolerance=math.radians(0.5))
+    estimate = run.settings["estimated_error_rad"]
+    true = _max_error(run, jump_reference)
+    assert 0.5 * true < estimate < 2.0 * true
+    warned = ts.simulate(jump, METHOD, atol=1e-3, tolerance=math.radians(0.01))
+    assert "use a smaller atol" in warned.message
+
+
+@pytest.mark.parametrize("atol", [0.0, 2.0, math.nan])
+def test_bad_tolerances_name_the_field(atol):
+    with pytest.raises(ModelError, match="atol"):
+        ts.simulate(None, METHOD, atol=atol)
+
+
+def test_the_curl_runs_error_controlled():
+    """A body without contacts (one segment on a pivot): no events, and within 0.1° of the
+    reference at the default tolerance."""
+    model = ts.load_model("builtin:elbow-curl")
+    run = ts.simulate(model, METHOD, tolerance=None)
+    reference = ts.simulate(model, "reference")
+    assert run.settings["events"] == 0
+    assert math.degrees(_max_error(run, reference)) < 0.1
