@@ -277,6 +277,23 @@ def integration_gap(problem: FitProblem, x) -> dict[str, tuple[float, float]]:
     return {j: (mine[j][0], theirs[j][0]) for j in problem.target.joints}
 
 
+def integration_floor(problem: FitProblem, x) -> float:
+    """How far the fit's own simulation of the parameters ``x`` lies from their reference
+    re-simulation, in the units of the objective's angle part (deg, √(Σ_j w_j·RMS_j²) over
+    the target samples): below this the objective measures the integration error, not the
+    fit. Infinite when either run fails."""
+    from ..solvers.simulation import simulate
+
+    model = problem.model_for(x)
+    own = simulate(model, problem.method, problem.step, coupling=problem.coupling,
+                   check=False, advise=False, tolerance=None)
+    reference = reference_resimulation(problem, x)
+    if not (own.success and reference.success):
+        return math.inf
+    difference = np.degrees(problem.sampled_angles(own) - problem.sampled_angles(reference))
+    return float(math.sqrt(float(np.sum(problem.weights * np.mean(difference**2, axis=1)))))
+
+
 def agrees(gap: dict[str, tuple[float, float]]) -> bool:
     """Whether every joint's fit RMS and reference RMS agree (`AGREEMENT_FRACTION`)."""
     return all(abs(ref - own) <= max(AGREEMENT_FRACTION * own, AGREEMENT_DEG)
@@ -361,6 +378,8 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
         if failed[0]:
             _explain_failed_start(problem, guess)
         say(f"initial guess: {guess_score:.3f} deg")
+        floor = integration_floor(problem, guess) if settings.search == "least-squares" \
+            else math.inf
         run.state = {"version": CHECKPOINT_VERSION, "fingerprint": fingerprint(problem),
                      "search": settings.search, "seed": settings.seed,
                      "population_per_parameter": settings.population_per_parameter,
@@ -368,6 +387,7 @@ def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
                      "stage": "search", "generations_done": 0, "polish_done": 0,
                      "simulations": problem.simulations, "failed": problem.failed_simulations,
                      "initial_score": guess_score, "initial_x": guess, "best_x": guess,
+                     "integration_floor": floor,
                      "best_score": guess_score,
                      "history": [[problem.simulations, 0.0, guess_score]]}
         if settings.search == "global":
@@ -575,6 +595,16 @@ class _Run:
             if self.tick:
                 self.tick("least squares", k + 1, settings.starts + 1)
             self.save(force=True)
+            floor = float(state.get("integration_floor", 0.0))
+            if state["best_score"] <= floor:
+                self.say(f"least squares  done: {float(state['best_score']):.4f} deg is within "
+                         f"the integration error of the fit's simulations ({floor:.4f} deg "
+                         "from the reference's), which no further start or refinement can "
+                         "tell from a better fit")
+                if self.tick:
+                    self.tick("least squares", settings.starts + 1, settings.starts + 1)
+                state["stage"] = "done"
+                return
         best = screened[int(np.argmin(screened[:, -1]))]
         result = self._solve(best[:-1], settings.iterations)
         if result is None:
