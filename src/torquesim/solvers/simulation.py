@@ -515,16 +515,24 @@ def largest_step(model: ChainModel) -> float:
                 *(RAMP_RESOLUTION * r for r in ramps if r > 0.0)])
 
 
+def control_array(model: ChainModel, coupling: Coupling, atol: float,
+                  rtol: float = 0.0) -> np.ndarray:
+    """The packed ``coupling`` with the error-controlled loop's settings: the angle tolerance
+    ``atol`` (rad), ``rtol`` and the model's `largest_step`."""
+    control = coupling.to_array()
+    control[ABSOLUTE_TOLERANCE] = atol
+    control[RELATIVE_TOLERANCE] = rtol
+    control[MAX_STEP] = largest_step(model)
+    return control
+
+
 def _error_controlled(model, packed, y0, coupling, atol, rtol, output_step) -> SimulationResult:
     """A run of the error-controlled loop (`error_control`) at the angle tolerance ``atol``
     (rad) and ``rtol``, written on the grid of ``output_step``."""
     n = step_count(model.duration, output_step, "output_step")
     out = np.empty((n + 1, model.state_size))
     stats = fs.new_stats()
-    control = coupling.to_array()
-    control[ABSOLUTE_TOLERANCE] = atol
-    control[RELATIVE_TOLERANCE] = rtol
-    control[MAX_STEP] = largest_step(model)
+    control = control_array(model, coupling, atol, rtol)
     kinds = step_loop.model_step_kinds(model, False, control)
     run = step_loop.run_step_loop
     run(kinds, tuple(packed), y0, float(output_step), 0, control, out, fs.new_stats())

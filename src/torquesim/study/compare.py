@@ -18,16 +18,18 @@ from ..errors import ModelError
 from ..model.chain import ChainModel, as_chain
 from ..solvers import simulate
 from ..solvers.simulation import step_count
-from ..solvers.techniques import Technique, runs_monolithic, scipy_solver, study_techniques
+from ..solvers.techniques import (
+    CONTROLLED_TOLERANCES,
+    Technique,
+    runs_monolithic,
+    scipy_solver,
+    study_techniques,
+)
 
 DEFAULT_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.2e-3, 0.1e-3, 0.05e-3)
 #: A default step list keeps at least this many steps (`default_steps`).
 MIN_DEFAULT_STEPS = 6
 DEFAULT_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
-#: The angle tolerances (atol, rad) of the error-controlled techniques, spaced as the steps
-#: (1, 2, 5 per decade): their global error follows atol, and a decade of it costs √10 in
-#: steps (order 2), so a finer ladder than rtol's.
-CONTROLLED_TOLERANCES = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6)
 ACCURACY_TARGETS_DEG = (1.0, 0.1, 0.01, 0.001)
 #: A run whose max angle error exceeds this is counted unstable: RK4 past its stability limit
 #: stays bounded (the clamps), so "bounded" is not enough.
