@@ -119,6 +119,25 @@ def test_the_accuracy_estimate_holds_and_warns(jump, jump_reference):
     assert "use a smaller atol" in warned.message
 
 
+@pytest.mark.parametrize("name", ["arm-raise", "drop-landing"])
+def test_no_silent_wrong_run_at_any_tolerance(name):
+    """From atol 1 rad (every step the largest) down: the estimate is within 2x of the true
+    error wherever that is above 0.01°, and a run beyond simulate's default tolerance (0.5°)
+    is warned about. (At a loose atol every step is the largest, so a check at a tighter
+    atol alone would repeat the run and see nothing: the arm raise ran 1.4° off with an
+    estimate of 0 until the check halved the largest step too.)"""
+    model = ts.load_model(f"builtin:{name}")
+    reference = ts.simulate(model, "reference")
+    for atol in (1.0, 1e-2, 1e-3, 1e-4):
+        run = ts.simulate(model, METHOD, atol=atol, check=False)
+        true = math.degrees(_max_error(run, reference))
+        estimate = math.degrees(run.settings["estimated_error_rad"])
+        if true > 0.01:
+            assert 0.5 * true < estimate < 2.0 * true, (atol, true, estimate)
+        if true > 0.5:
+            assert "exceeds the tolerance" in run.message, (atol, true)
+
+
 @pytest.mark.parametrize("atol", [0.0, 2.0, math.nan])
 def test_bad_tolerances_name_the_field(atol):
     with pytest.raises(ModelError, match="atol"):

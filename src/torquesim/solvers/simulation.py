@@ -491,19 +491,22 @@ CONTROLLED_TIGHTER = 4.0
 def _with_controlled_estimate(result, model, packed, y0, method, tolerance):
     """``result`` (an error-controlled run) with an estimate of its max angle error (rad) and
     a warning above ``tolerance``: max|q − q_tight|·c/(c − 1) against the run at atol
-    c = `CONTROLLED_TIGHTER` times tighter, the global error being proportional to atol
-    (tests/test_error_control.py measures it); the tighter run failing, infinite."""
+    c = `CONTROLLED_TIGHTER` times tighter and at half the largest step, the global error
+    being proportional to atol where the control chooses the steps (tests/test_error_control.py
+    measures it) and to h² where the largest step does (order 2: half the step, a quarter of
+    the error); the tighter run failing, infinite. (At a loose atol every step is the
+    largest, and a run at a tighter atol alone would repeat it: the estimate would be 0.)"""
     c = CONTROLLED_TIGHTER
     settings = result.settings
     tight = _error_controlled(model, packed, y0, method_technique(method).coupling,
                               settings["atol"] / c, settings["rtol"] / c,
-                              settings["output_step"])
+                              settings["output_step"], settings["max_step"] / math.sqrt(c))
     n = min(tight.time.size, result.time.size)  # (the same grid)
     estimate = float(np.max(np.abs(result.q[:n] - tight.q[:n]))) * c / (c - 1.0) \
         if tight.success else math.inf
-    return _with_estimate(result, estimate, tolerance, f"against atol {c:g}x tighter",
-                          "use a smaller atol, or method 'reference'",
-                          f"the run at atol {c:g}x tighter failed")
+    how = f"against atol {c:g}x tighter, largest step halved"
+    return _with_estimate(result, estimate, tolerance, how,
+                          "use a smaller atol, or method 'reference'", f"the run {how} failed")
 
 
 def largest_step(model: ChainModel) -> float:
@@ -515,24 +518,26 @@ def largest_step(model: ChainModel) -> float:
                 *(RAMP_RESOLUTION * r for r in ramps if r > 0.0)])
 
 
-def control_array(model: ChainModel, coupling: Coupling, atol: float,
-                  rtol: float = 0.0) -> np.ndarray:
+def control_array(model: ChainModel, coupling: Coupling, atol: float, rtol: float = 0.0,
+                  max_step: float | None = None) -> np.ndarray:
     """The packed ``coupling`` with the error-controlled loop's settings: the angle tolerance
-    ``atol`` (rad), ``rtol`` and the model's `largest_step`."""
+    ``atol`` (rad), ``rtol`` and the largest step (default the model's `largest_step`)."""
     control = coupling.to_array()
     control[ABSOLUTE_TOLERANCE] = atol
     control[RELATIVE_TOLERANCE] = rtol
-    control[MAX_STEP] = largest_step(model)
+    control[MAX_STEP] = largest_step(model) if max_step is None else max_step
     return control
 
 
-def _error_controlled(model, packed, y0, coupling, atol, rtol, output_step) -> SimulationResult:
+def _error_controlled(model, packed, y0, coupling, atol, rtol, output_step,
+                      max_step=None) -> SimulationResult:
     """A run of the error-controlled loop (`error_control`) at the angle tolerance ``atol``
-    (rad) and ``rtol``, written on the grid of ``output_step``."""
+    (rad) and ``rtol``, written on the grid of ``output_step``; ``max_step`` as in
+    `control_array`."""
     n = step_count(model.duration, output_step, "output_step")
     out = np.empty((n + 1, model.state_size))
     stats = fs.new_stats()
-    control = control_array(model, coupling, atol, rtol)
+    control = control_array(model, coupling, atol, rtol, max_step)
     kinds = step_loop.model_step_kinds(model, False, control)
     run = step_loop.run_step_loop
     run(kinds, tuple(packed), y0, float(output_step), 0, control, out, fs.new_stats())
