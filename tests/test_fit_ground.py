@@ -217,3 +217,26 @@ def test_take_off_speed_from_the_force_target_s_impulse(jump, target):
     assert abs(off["speed_error_percent"]) < 2.0
     assert abs(off["target_s"] - off["reference_s"]) <= 0.005
     assert 2.2 < off["reference_speed_m_s"] < 2.4  # the preset's 2.30 m/s (docs/presets.md)
+
+
+def test_the_search_stops_within_the_integration_error(jump, target):
+    """Started at the ramps that made the target (four of them free), the first least-squares
+    start ends within the integration error of the fit's own simulations (their distance from
+    the reference re-simulation, `integration_floor`), so the other starts and the
+    refinement are skipped; the reference re-simulation of the result still matches the
+    target to 0.005° per joint."""
+    from torquesim.fitting.fit import integration_floor
+
+    truth = preset_vector(jump)
+    space = ParameterSpace.for_model(jump)
+    free = {"knee_extensors.ramp1.delay", "hip_extensors.ramp1.level"}
+    for name, value in zip(space.names, truth, strict=True):
+        if name not in free:
+            space = space.with_frozen(name, float(value))
+    problem = FitProblem(target, space, jump, step=2.5e-4)
+    floor = integration_floor(problem, truth)
+    assert 0.0 < floor < 0.01
+    outcome = run_fit(problem, SearchSettings(starts=3), start=truth)
+    assert outcome.generations_done == 1 and outcome.score <= floor
+    reference = ts.simulate(problem.model_for(outcome.x), "reference", output_step=2.5e-4)
+    assert max(rms for rms, _ in problem.errors_deg(reference).values()) < 0.005
