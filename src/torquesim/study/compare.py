@@ -188,8 +188,9 @@ def run_study(model, *, steps=DEFAULT_STEPS, tolerances=DEFAULT_TOLERANCES,
 
 
 def _run(model, tech: Technique, setting: float, initial_state):
-    """One run of the study: ``tech`` at step (or rtol) ``setting``, no advice and no accuracy
-    check (the study measures the error against its reference itself)."""
+    """One run of the study: ``tech`` at step (rtol; atol of an error-controlled technique)
+    ``setting``, no advice and no accuracy check (the study measures the error against its
+    reference itself)."""
     kwargs = dict(initial_state=initial_state, check=False, advise=False, tolerance=None)
     if tech.error_controlled:
         kwargs.update(atol=setting, output_step=GRID)
@@ -256,8 +257,9 @@ def calibrate(rows: list[dict]) -> dict[str, float]:
     coefficients: dict[str, float] = {}
     for kind, work, adaptive in (("fixed", FIXED_STEP_WORK, False),
                                  ("scipy", ADAPTIVE_WORK, True)):
-        mine = [r for r in rows if (scipy_solver(r["method"]) is not None) == adaptive
-                and r.get("wall_time_s")]
+        mine = [r for r in rows if (r["h_s"] is None and scipy_solver(r.get("method") or
+                                                                    "scipy:") is not None)
+                == adaptive and r.get("wall_time_s")]
         if not mine:
             continue
         fit = [r for r in mine if r.get("calibration_run")] or mine
@@ -323,7 +325,11 @@ def stability_limit(rows: list[dict], technique: str) -> float | None:
 
 
 def _setting(row) -> str:
-    return f"h = {row['h_s'] * 1e3:g} ms" if row["h_s"] else f"rtol = {row['tolerance']:g}"
+    if row["h_s"]:
+        return f"h = {row['h_s'] * 1e3:g} ms"
+    if row.get("method") and scipy_solver(row["method"]) is None:  # error-controlled: atol
+        return f"atol = {row['tolerance']:g} rad"
+    return f"rtol = {row['tolerance']:g}"
 
 
 def verdict(rows: list[dict], targets=ACCURACY_TARGETS_DEG, cost: str = "modelled_cost_s",

@@ -9,6 +9,7 @@ from ..io.atomic import write_atomic, write_text_atomic
 from ..io.provenance import load_average, provenance
 from ..io.tables import write_rows
 from ..plots import figure_png
+from ..solvers.techniques import CONTROLLED_TOLERANCES
 from .cases import smooth_case, smooth_chain_case
 from .compare import (
     COLUMNS,
@@ -92,6 +93,7 @@ def write_study(directory, model, *, steps, repeats=DEFAULT_REPEATS, progress=No
     load = load_average()
     shown = {"model": model_source, "fixed steps (ms)": [h * 1e3 for h in steps],
              "adaptive tolerances (rtol)": list(DEFAULT_TOLERANCES),
+             "error-controlled tolerances (atol, rad)": list(CONTROLLED_TOLERANCES),
              "reference": "SciPy Radau, rtol 1e-11, atol 1e-13",
              "cost": "modelled: work counts × the time of one unit of each kind of work, "
                      "calibrated in this run",

@@ -215,7 +215,8 @@ the kinks and the stiffness, not the requested accuracy, set the steps.</li>
 
 #: The report's table of all runs: (row key, header with units, scale).
 RUN_TABLE = (("technique", "technique", None), ("h_s", "step h (ms)", 1e3),
-             ("tolerance", "rtol", None), ("max_error_deg", "max error (deg)", None),
+             ("tolerance", "rtol (atol, rad: imex-ros2-adaptive)", None),
+             ("max_error_deg", "max error (deg)", None),
              ("rms_error_deg", "RMS error (deg)", None),
              ("final_torque_error_nm", "final torque error (N·m)", None),
              ("stable", "within 1°", None), ("guard_exceeded", "guard exceeded", None),
