@@ -42,7 +42,7 @@ def _max_error(run, reference) -> float:
 
 def test_order_two_from_work_and_error_following_the_tolerance(jump_runs, jump_reference):
     """Error against steps falls as N^−p with p ≈ 2 (the technique's declared order), and a
-    decade of atol moves the global error by a decade (3–30x: tolerance proportionality,
+    decade of atol moves the global error by about a decade (3–50x: tolerance proportionality,
     which the accuracy estimate relies on)."""
     runs = [jump_runs[a] for a in (1e-3, 1e-4, 1e-5)]
     errors = [_max_error(r, jump_reference) for r in runs]
@@ -50,7 +50,7 @@ def test_order_two_from_work_and_error_following_the_tolerance(jump_runs, jump_r
     order = -np.polyfit(np.log(steps), np.log(errors), 1)[0]
     assert 1.6 < order < 2.6, (order, errors, steps)
     for coarse, fine in zip(errors, errors[1:], strict=False):
-        assert 3.0 < coarse / fine < 30.0, errors
+        assert 3.0 < coarse / fine < 50.0, errors
     assert math.degrees(errors[1]) < 0.05
 
 

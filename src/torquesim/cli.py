@@ -162,7 +162,7 @@ def cli(context):
                    "OpenSim external-loads .mot (total at the centre of pressure, and per "
                    "contact point).")
 @click.option("--atol", type=float, default=None,
-              help="imex-ros2-adaptive: the angle tolerance of each step, rad (speeds 1000x "
+              help="imex-ros2-adaptive: the angle tolerance of each step, rad (speeds 300x "
                    "it per second). Default 1e-4. Bounds [1e-12, 1].")
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Fixed-step methods: estimate the max angle error against a run at twice "

@@ -54,8 +54,10 @@ from .coupling_layout import ABSOLUTE_TOLERANCE, MAX_STEP, RELATIVE_TOLERANCE
 from .rates import check_unit_kinds, flat_arrays, joint_muscle_torques
 
 #: Speeds are held to this many times the angle tolerance per second (rad/s per rad): a speed
-#: error carried for 0.1 s moves the angle by the angle tolerance.
-VELOCITY_SCALE = 1000.0
+#: error carried over 3.3 ms moves the angle by the angle tolerance. Chosen on the squat jump
+#: and the drop landing (benchmarks/bench_error_control.py): 100, 200, 300, 500, 1000 and 3000
+#: tried, 300 the least work at 0.1° and 0.01° on both; 10 cost the jump 3-4x more steps.
+VELOCITY_SCALE = 300.0
 #: An event (a contact point's height changing sign) is located within this time, s.
 EVENT_TIME_TOLERANCE = 1e-6
 #: Below this step the loop stops with `STEP_TOO_SMALL`, s.
@@ -101,6 +103,8 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
     if n_contacts > 0:
         contact_heights(y, n, seg, joints, heights)
     torque_prev = np.empty(n)
+    omega_start = np.empty(nu)  # the units' CE velocities at this step's start and the last's
+    omega_prev = np.empty(nu)
     for u in range(nu):
         b[fs._OMEGA, u] = np.nan
     joint_muscle_torques(y, y, units, nu, torque_prev, n)
@@ -124,6 +128,10 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
         if t + h * 1.01 >= t_end:
             h = t_end - t
         fs._muscles_at_step_start(muscles, t, y, h, b, stats, dynamics)
+        for u in range(nu):  # the first stage's seed: ω extrapolated to t + γh
+            omega_start[u] = b[fs._OMEGA, u]
+            if h_prev > 0.0:
+                b[fs._OMEGA, u] += (omega_start[u] - omega_prev[u]) * _GAMMA * h / h_prev
         for j in range(n):
             b[fs._TORQUE_SLOPE, j] = (b[fs._TORQUE0, j] - torque_prev[j]) * h / h_prev \
                 if h_prev > 0.0 else 0.0
@@ -183,6 +191,8 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
             stats[fs.EVENTS] = k + 1
         for j in range(n):
             torque_prev[j] = b[fs._TORQUE0, j]
+        for u in range(nu):
+            omega_prev[u] = omega_start[u]
         for i in range(size):
             y[i] = y1[i]
         for c in range(n_contacts):
