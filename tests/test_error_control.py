@@ -87,25 +87,31 @@ def test_touchdown_of_a_falling_body_is_located_to_the_event_tolerance():
 
 
 def test_flight_follows_gravity_and_impulse_matches_momentum(jump):
-    """In flight the centre of mass falls at g: its vertical speed over the whole flight
-    changes by −g·t within 1e-4 g·t, its height stays on the take-off's parabola within 1 mm;
-    over the jump the ground's impulse equals the momentum change within 1e-3 (the output
-    grid's trapezoid on interpolated states: not the fixed-step loops' 1e-6)."""
-    run = ts.simulate(jump, METHOD, atol=1e-5, output_step=1e-4, tolerance=None)
-    c = run.columns()
-    air = np.flatnonzero(c["grf_y"] == 0.0)
-    first, last = air[0] + 1, air[-1]
-    span = run.time[last] - run.time[first]
-    change = c["com_speed_y"][last] - c["com_speed_y"][first]
-    assert abs(change + G * span) < 1e-4 * G * span
-    t = run.time[first:last + 1] - run.time[first]
-    parabola = c["com_y"][first] + c["com_speed_y"][first] * t - 0.5 * G * t**2
-    assert np.max(np.abs(c["com_y"][first:last + 1] - parabola)) < 1e-3
+    """In flight the centre of mass falls at g and over the jump the ground's impulse equals
+    the momentum change, to within what the tolerance allows (both are nonlinear in the state,
+    so no Runge-Kutta method keeps them exactly; their error follows atol): at the default
+    atol (1e-4 rad) the flight's speed change is −g·t within 5e-4 relative and the impulse
+    the momentum change within 3e-3 (measured 1.7e-4 and 1.5e-3; not the 1e-6 of monolithic
+    RK4 at 12.5 µs); at 1e-5 within 5e-5 and 2e-4. The centre of mass stays on the take-off's
+    parabola within 1 mm."""
     mass = sum(s.total_mass for s in jump.segments)
-    net = c["grf_y"] - mass * G
-    impulse = np.concatenate([[0.0], np.cumsum(0.5 * (net[1:] + net[:-1]) * np.diff(run.time))])
-    momentum = mass * (c["com_speed_y"] - c["com_speed_y"][0])
-    assert np.max(np.abs(impulse - momentum)) < 1e-3 * np.abs(momentum).max()
+    for atol, speed_bound, impulse_bound in ((None, 5e-4, 3e-3), (1e-5, 5e-5, 2e-4)):
+        run = ts.simulate(jump, METHOD, atol=atol, output_step=1e-4, tolerance=None)
+        c = run.columns()
+        air = np.flatnonzero(c["grf_y"] == 0.0)
+        first, last = air[0] + 1, air[-1]
+        span = run.time[last] - run.time[first]
+        change = c["com_speed_y"][last] - c["com_speed_y"][first]
+        assert abs(change + G * span) < speed_bound * G * span, atol
+        t = run.time[first:last + 1] - run.time[first]
+        parabola = c["com_y"][first] + c["com_speed_y"][first] * t - 0.5 * G * t**2
+        assert np.max(np.abs(c["com_y"][first:last + 1] - parabola)) < 1e-3
+        net = c["grf_y"] - mass * G
+        impulse = np.concatenate([[0.0], np.cumsum(0.5 * (net[1:] + net[:-1])
+                                                   * np.diff(run.time))])
+        momentum = mass * (c["com_speed_y"] - c["com_speed_y"][0])
+        assert np.max(np.abs(impulse - momentum)) < impulse_bound * np.abs(momentum).max(), \
+            atol
 
 
 def test_the_accuracy_estimate_holds_and_warns(jump, jump_reference):
