@@ -3,8 +3,9 @@ coupling variant, the muscle part explicit (RK4) or implicit (SDIRK2, the IMEX t
 body part explicit (RK4) or linearly implicit in its stiff forces (ROS2, ``imex-ros2``).
 
 The loops take the packed chain arrays (`PackedChain`) as one tuple, the body's kinds
-(`BodyKinds`, None for one segment) and the units' switches (`StepKinds`), write the state
-y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices below).
+(`BodyKinds`, None for one segment) and the units' switches (`step_loop.StepKinds`), write
+the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices
+below).
 Scratch arrays are allocated once per run, the parameter arrays are read flat with row
 offsets, and the loops over units and joints sit in the step loops themselves, calling only
 loop-free inlined functions of `torquesim.solvers.rates`: a compiled helper holding a loop
