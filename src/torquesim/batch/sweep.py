@@ -26,7 +26,7 @@ from ..fitting.problem import DEFAULT_METHOD
 from ..io.fingerprint import fingerprint as hash_parts
 from ..model.chain import ChainModel, as_chain
 from ..model.paths import parse_assignment, set_parameter
-from ..solvers.choice import candidates, choose_technique
+from ..solvers.choice import choose_technique
 from ..solvers.simulation import DEFAULT_TOLERANCE
 from ..solvers.techniques import FIT_METHODS
 
@@ -292,11 +292,8 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     chain = as_chain(load_model(model) if isinstance(model, str | Path) else model)
     choice = None
     if step is None:
-        # (fixed steps only: each sample's accuracy check costs an error-controlled run two
-        # more runs' work, against half a run's at a fixed step)
         choice = choose_technique(chain, CHOICE_SHARE * tolerance,
-                                  candidates(chain, controlled=False) if method is None
-                                  else (method,))
+                                  None if method is None else (method,))
         method, step = (choice.method, choice.step) if choice is not None else \
             (method, sweep_step(chain))
     method = method or DEFAULT_METHOD

@@ -15,7 +15,6 @@ from ..io.json_text import json_text
 from ..io.model_file import save_model
 from ..io.provenance import provenance
 from ..io.tables import write_table
-from ..solvers.techniques import ERROR_CONTROLLED_METHODS
 from .goals import Trial
 from .problem import OptimiseProblem, endstop_depths
 from .search import OptimiseOutcome, OptimiseSettings
@@ -103,8 +102,7 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
             "accuracy_deg": math.degrees(problem.choice.accuracy),
             "estimated_error_deg": math.degrees(problem.choice.error),
             "work_body_evaluations": problem.choice.work,
-            "atol_rad": problem.choice.atol,
-            "tried": [{"method": m, ("atol_rad" if m in ERROR_CONTROLLED_METHODS else "step_s"): h,
+            "tried": [{"method": m, "step_s": h,
                        "estimated_error_deg": None if e is None else math.degrees(e),
                        "work_body_evaluations": w} for m, h, e, w in problem.choice.tried]},
         "robust": ({"copies": problem.robust, "timing_error_s": problem.timing_error,

@@ -53,7 +53,6 @@ from ..fitting.problem import DEFAULT_METHOD, default_step, fit_step
 from ..model.chain import ChainModel, as_chain
 from ..solvers import step_loop
 from ..solvers.choice import choose_technique
-from ..solvers.simulation import control_array
 from ..solvers.techniques import (
     FIT_METHODS,
     default_coupling,
@@ -274,13 +273,11 @@ class OptimiseProblem:
         self.space = parameter_space(self.model3, self.x0, self.window, self.free,
                                      self.frozen, self.bounds)
         self.choice = None
-        self.atol = None  # the angle tolerance of an error-controlled choice, rad
         if self.step is None:
             self.choice = choose_technique(start, self.accuracy,
                                            None if self.method is None else (self.method,))
             if self.choice is not None:
                 self.method, self.step = self.choice.method, self.choice.step
-                self.atol = self.choice.atol
             else:
                 self.step = default_step(start)
         self.method = self.method or DEFAULT_METHOD
@@ -289,13 +286,10 @@ class OptimiseProblem:
         self.y0 = begin.state
         self.levels = np.array(begin.levels, dtype=float)
         self.coupling = default_coupling(self.method)
-        # the packed exchange the runs take: with the error control's settings, if chosen
-        self.exchange = self.coupling.to_array() if self.atol is None else \
-            control_array(start, self.coupling, self.atol)
         packed = self.model3.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
         self.step_kinds = step_loop.model_step_kinds(start, runs_monolithic(self.method),
-                                                     self.exchange)
+                                              self.coupling.to_array())
         self.ground = bool(start.contacts) and start.base == "free"
         self.joint_names = tuple(j.name for j in start.joints)
         rng = np.random.default_rng(self.perturbation_seed)
@@ -335,7 +329,7 @@ class OptimiseProblem:
     def _chunk(self, rows) -> list[tuple[Trial | None, str]]:
         m, steps = rows.shape[0], self.n_steps + 1
         states, activations, outputs, status = run_population(
-            rows, self.step_kinds, self.exchange, self.y0, self.step, self.n_steps,
+            rows, self.step_kinds, self.coupling.to_array(), self.y0, self.step, self.n_steps,
             self.arrays, self.levels, self.explicit_muscles,
             np.arange(steps if self.ground else 0), activation_steps=steps)
         model = self.start_model
@@ -406,9 +400,6 @@ class OptimiseProblem:
         model = self.model_for(x)
         if reference:
             return simulate(model, "reference", output_step=self.step, check=False)
-        if self.atol is not None:
-            return simulate(model, self.method, atol=self.atol, output_step=self.step,
-                            check=False, tolerance=None)
         return simulate(model, self.method, self.step, coupling=self.coupling, check=False,
                         advise=False, tolerance=None)
 
