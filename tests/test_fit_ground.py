@@ -220,11 +220,10 @@ def test_take_off_speed_from_the_force_target_s_impulse(jump, target):
 
 
 def test_the_search_stops_within_the_integration_error(jump, target):
-    """Started at the ramps that made the target (four of them free), the first least-squares
-    start ends within the integration error of the fit's own simulations (their distance from
-    the reference re-simulation, `integration_floor`), so the other starts and the
-    refinement are skipped; the reference re-simulation of the result still matches the
-    target to 0.005° per joint."""
+    """Started at the ramps that made the target (two of them free), the first least-squares
+    start ends within the integration error of the fit's own simulations (estimated by step
+    halving, `integration_floor`), so the other starts and the refinement are skipped; the
+    reference re-simulation of the result still matches the target to 0.005° per joint."""
     from torquesim.fitting.fit import integration_floor
 
     truth = preset_vector(jump)

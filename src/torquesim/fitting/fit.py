@@ -278,20 +278,21 @@ def integration_gap(problem: FitProblem, x) -> dict[str, tuple[float, float]]:
 
 
 def integration_floor(problem: FitProblem, x) -> float:
-    """How far the fit's own simulation of the parameters ``x`` lies from their reference
-    re-simulation, in the units of the objective's angle part (deg, √(Σ_j w_j·RMS_j²) over
-    the target samples): below this the objective measures the integration error, not the
-    fit. Infinite when either run fails."""
-    from ..solvers.simulation import simulate
+    """The integration error of the fit's own simulation of the parameters ``x`` in the
+    objective's units (deg): ‖r_h − r_h/2‖·2^p/(2^p − 1), r the residual vectors at the fit's
+    step and at half of it, p the technique's order (`nominal_order`): Richardson's estimate,
+    as `simulate`'s check makes a run's. Below it the objective measures the integration
+    error, not the fit. Infinite when either run fails."""
+    from ..solvers.techniques import nominal_order
 
-    model = problem.model_for(x)
-    own = simulate(model, problem.method, problem.step, coupling=problem.coupling,
-                   check=False, advise=False, tolerance=None)
-    reference = reference_resimulation(problem, x)
-    if not (own.success and reference.success):
+    finer = replace(problem, step=problem.step / 2)
+    row = np.asarray(x, dtype=float)[None, :]
+    coarse, failed = problem.residuals(row)
+    fine, failed_fine = finer.residuals(row)
+    if failed[0] or failed_fine[0]:
         return math.inf
-    difference = np.degrees(problem.sampled_angles(own) - problem.sampled_angles(reference))
-    return float(math.sqrt(float(np.sum(problem.weights * np.mean(difference**2, axis=1)))))
+    p = nominal_order(problem.method, problem.coupling)
+    return float(np.linalg.norm(coarse[0] - fine[0])) * 2**p / (2**p - 1)
 
 
 def agrees(gap: dict[str, tuple[float, float]]) -> bool:
@@ -598,9 +599,9 @@ class _Run:
             floor = float(state.get("integration_floor", 0.0))
             if state["best_score"] <= floor:
                 self.say(f"least squares  done: {float(state['best_score']):.4f} deg is within "
-                         f"the integration error of the fit's simulations ({floor:.4f} deg "
-                         "from the reference's), which no further start or refinement can "
-                         "tell from a better fit")
+                         f"the integration error of the fit's simulations ({floor:.4f} deg, "
+                         "by step halving), which no further start or refinement can tell "
+                         "from a better fit")
                 if self.tick:
                     self.tick("least squares", settings.starts + 1, settings.starts + 1)
                 state["stage"] = "done"
