@@ -181,7 +181,7 @@ class FitProblem:
         packed = self.model.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
         self.step_kinds = step_loop.model_step_kinds(base, runs_monolithic(self.method),
-                                              self.coupling.to_array())
+                                                     self.coupling.to_array())
         self.times = np.ascontiguousarray(self.target.elapsed)
         self.target_omega = np.ascontiguousarray(self.target.angular_velocity())
         self.target_angles = np.ascontiguousarray(self.target.angles)
@@ -237,26 +237,20 @@ class FitProblem:
         """The model with the activation ramps of the parameter vector ``x``."""
         return with_ramps(self.model, x, self.initial_levels)
 
-    def sampled_angles(self, result) -> np.ndarray:
-        """The scored joints' angles (rows, rad) of a simulation result at the target samples;
-        fixed-step results are sampled as in the fit (cubic Hermite)."""
-        n = result.model.n_coordinates
-        out = np.empty((len(self.scored), self.times.size))
-        for row, j in enumerate(self.scored):
-            if result.step is not None:
-                qd = np.empty_like(self.times)
-                obj.sample_joint(result.states, result.step, self.times, int(j), n, out[row],
-                                 qd)
-            else:
-                out[row] = np.interp(self.times, result.time, result.states[:, j])
-        return out
-
     def errors_deg(self, result) -> dict[str, tuple[float, float]]:
         """(RMS, max) angle error per scored joint of a simulation result at the target
-        samples, deg (`sampled_angles`)."""
-        errors = np.degrees(self.sampled_angles(result) - self.target.angles)
-        return {joint: (float(np.sqrt(np.mean(e**2))), float(np.max(np.abs(e))))
-                for joint, e in zip(self.target.joints, errors, strict=True)}
+        samples, deg; fixed-step results are sampled as in the fit (cubic Hermite)."""
+        n = result.model.n_coordinates
+        out = {}
+        for row, (joint, j) in enumerate(zip(self.target.joints, self.scored, strict=True)):
+            if result.step is not None:
+                q, qd = np.empty_like(self.times), np.empty_like(self.times)
+                obj.sample_joint(result.states, result.step, self.times, int(j), n, q, qd)
+            else:
+                q = np.interp(self.times, result.time, result.states[:, j])
+            error = np.degrees(q - self.target.angles[row])
+            out[joint] = (float(np.sqrt(np.mean(error**2))), float(np.max(np.abs(error))))
+        return out
 
     def channel_errors(self, result) -> dict[str, tuple[float, float]]:
         """(RMS, max) error of each target channel of a simulation result at the target

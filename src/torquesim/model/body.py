@@ -465,15 +465,14 @@ def _point_direction(n, seg, work, row, k, vertical):
 
 
 @njit(cache=True, error_model="numpy")
-def contact_heights(y, n, seg, joints, heights):
+def contact_heights(y, n, seg, joints, heights, phi):
     """Height above the ground (m) of every contact point of the free-base body ``seg`` at
     the coordinates y[:n], into heights[c] (contact after contact): the kinematics of
     `_free_base_terms`' points alone (the base's y, then each ancestor's lever and the
     point's distance and offset on its segment), for the error-controlled loop's events
-    (take-off and touchdown: a height changing sign). Absolute angles φ_k = q_k + offset +
-    φ_parent."""
+    (take-off and touchdown: a height changing sign). The absolute angles
+    φ_k = q_k + offset + φ_parent go into the scratch ``phi`` (one per segment)."""
     n_seg = n - 2
-    phi = np.empty(n_seg)
     for k in range(n_seg):
         p = int(seg[k, SEG_PARENT_COLUMN])
         phi[k] = joints[(2 + k) * JOINT_ROW_SIZE + ZERO_OFFSET] + y[2 + k] \

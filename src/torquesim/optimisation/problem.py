@@ -289,7 +289,7 @@ class OptimiseProblem:
         packed = self.model3.pack(self.levels)
         self.arrays = (packed.segments, packed.joints, packed.units)
         self.step_kinds = step_loop.model_step_kinds(start, runs_monolithic(self.method),
-                                              self.coupling.to_array())
+                                                     self.coupling.to_array())
         self.ground = bool(start.contacts) and start.base == "free"
         self.joint_names = tuple(j.name for j in start.joints)
         rng = np.random.default_rng(self.perturbation_seed)

@@ -100,8 +100,9 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
     n_contacts = seg.shape[0] - int(seg[0, SEG_COUNT_COLUMN])
     heights = np.empty(n_contacts)
     heights_end = np.empty(n_contacts)
+    angles = np.empty(int(seg[0, SEG_COUNT_COLUMN]))  # scratch of `contact_heights`
     if n_contacts > 0:
-        contact_heights(y, n, seg, joints, heights)
+        contact_heights(y, n, seg, joints, heights, angles)
     torque_prev = np.empty(n)
     omega_start = np.empty(nu)  # the units' CE velocities at this step's start and the last's
     omega_prev = np.empty(nu)
@@ -168,7 +169,7 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
             continue
         crossing = 2.0
         if n_contacts > 0:
-            contact_heights(y1, n, seg, joints, heights_end)
+            contact_heights(y1, n, seg, joints, heights_end, angles)
             for c in range(n_contacts):
                 if (heights[c] > 0.0) != (heights_end[c] > 0.0):
                     crossing = min(crossing, heights[c] / (heights[c] - heights_end[c]))

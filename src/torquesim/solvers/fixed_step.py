@@ -103,7 +103,8 @@ STATUS, STEPS, NFEV_BODY, NFEV_MUSCLE, WORST_RATIO, WORST_TIME, WORST_UNIT, SWEE
     COUPLING_ANGLE, CONTACT_RATIO, CONTACT_TIME, CONTACT_INDEX, BODY_JACOBIANS = range(18)
 # The error-controlled loop's (`error_control`): steps rejected (by the error test or to
 # locate an event), output rows written, the smallest and largest accepted step (s), the
-# events located and the times of the first EVENT_SLOTS of them (s).
+# events located and the times of the first EVENT_SLOTS of them (s). (It leaves the time it
+# stopped at in WORST_TIME when it fails: it has no stability guard of its own.)
 REJECTED_STEPS, ROWS, SMALLEST_STEP, LARGEST_STEP, EVENTS = range(18, 23)
 EVENT_TIMES = 23
 EVENT_SLOTS = 16

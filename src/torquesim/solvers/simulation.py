@@ -161,8 +161,7 @@ def simulate(
         rtol = 0.0 if rtol is None else rtol
         check_range("atol", atol, 1e-12, 1.0, unit="rad")
         check_range("rtol", rtol, 0.0, 1.0)
-        result = _error_controlled(model, packed, y0, method_technique(method).coupling, atol,
-                                   rtol, output_step)
+        result = _error_controlled(model, packed, y0, method, atol, rtol, output_step)
         if tolerance is not None and result.success:
             check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
             result = _with_controlled_estimate(result, model, packed, y0, method, tolerance)
@@ -498,9 +497,9 @@ def _with_controlled_estimate(result, model, packed, y0, method, tolerance):
     largest, and a run at a tighter atol alone would repeat it: the estimate would be 0.)"""
     c = CONTROLLED_TIGHTER
     settings = result.settings
-    tight = _error_controlled(model, packed, y0, method_technique(method).coupling,
-                              settings["atol"] / c, settings["rtol"] / c,
-                              settings["output_step"], settings["max_step"] / math.sqrt(c))
+    tight = _error_controlled(model, packed, y0, method, settings["atol"] / c,
+                              settings["rtol"] / c, settings["output_step"],
+                              settings["max_step"] / math.sqrt(c))
     n = min(tight.time.size, result.time.size)  # (the same grid)
     estimate = float(np.max(np.abs(result.q[:n] - tight.q[:n]))) * c / (c - 1.0) \
         if tight.success else math.inf
@@ -529,15 +528,15 @@ def control_array(model: ChainModel, coupling: Coupling, atol: float, rtol: floa
     return control
 
 
-def _error_controlled(model, packed, y0, coupling, atol, rtol, output_step,
+def _error_controlled(model, packed, y0, method, atol, rtol, output_step,
                       max_step=None) -> SimulationResult:
-    """A run of the error-controlled loop (`error_control`) at the angle tolerance ``atol``
-    (rad) and ``rtol``, written on the grid of ``output_step``; ``max_step`` as in
-    `control_array`."""
+    """A run of the error-controlled ``method`` (`error_control`, its registered coupling)
+    at the angle tolerance ``atol`` (rad) and ``rtol``, written on the grid of
+    ``output_step``; ``max_step`` as in `control_array`."""
     n = step_count(model.duration, output_step, "output_step")
     out = np.empty((n + 1, model.state_size))
     stats = fs.new_stats()
-    control = control_array(model, coupling, atol, rtol, max_step)
+    control = control_array(model, method_technique(method).coupling, atol, rtol, max_step)
     kinds = step_loop.model_step_kinds(model, False, control)
     run = step_loop.run_step_loop
     run(kinds, tuple(packed), y0, float(output_step), 0, control, out, fs.new_stats())
@@ -546,7 +545,6 @@ def _error_controlled(model, packed, y0, coupling, atol, rtol, output_step,
     wall = _time.perf_counter() - start
     rows = int(stats[fs.ROWS])
     times = np.arange(rows) * output_step
-    label = "imex-ros2-adaptive"
     status, message = "success", ""
     if stats[fs.STATUS] != fs.OK:
         at = float(stats[fs.WORST_TIME])
@@ -555,7 +553,7 @@ def _error_controlled(model, packed, y0, coupling, atol, rtol, output_step,
                                    f"{MIN_CONTROLLED_STEP:g} s"}.get(
             int(stats[fs.STATUS]), f"the state {_out_of_range(model, out[max(rows - 1, 0)])}")
         status = "failed"
-        message = (f"{label} at atol {atol:g} rad failed at t = {at:.6g} s: {what}; use a "
+        message = (f"{method} at atol {atol:g} rad failed at t = {at:.6g} s: {what}; use a "
                    "larger atol (the step then stays larger) or method 'reference'")
     cost = RunCost(int(stats[fs.STEPS]), int(stats[fs.NFEV_BODY]), int(stats[fs.NFEV_MUSCLE]),
                    wall, newton_iterations=int(stats[fs.NEWTON_ITERATIONS]),
@@ -572,7 +570,7 @@ def _error_controlled(model, packed, y0, coupling, atol, rtol, output_step,
                 "event_times": [float(v) for v in
                                 stats[fs.EVENT_TIMES:fs.EVENT_TIMES + min(events, fs.EVENT_SLOTS)]]}
     # (no stability report: both parts' stiff terms are implicit, and the step varies)
-    return SimulationResult(model, packed, times, out[:rows], label, None, cost, None,
+    return SimulationResult(model, packed, times, out[:rows], method, None, cost, None,
                             status, message, settings)
 
 
