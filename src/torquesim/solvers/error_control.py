@@ -58,6 +58,9 @@ from .rates import check_unit_kinds, flat_arrays, joint_muscle_torques
 #: and the drop landing (benchmarks/bench_error_control.py): 100, 200, 300, 500, 1000 and 3000
 #: tried, 300 the least work at 0.1° and 0.01° on both; 10 cost the jump 3-4x more steps.
 VELOCITY_SCALE = 300.0
+#: The units' implicit stages iterate until an update moves a unit's state by at most this
+#: fraction of the angle tolerance (`unit_implicit_ce_velocity`'s ``state_tolerance``).
+NEWTON_FRACTION = 0.1
 #: An event (a contact point's height changing sign) is located within this time, s.
 EVENT_TIME_TOLERANCE = 1e-6
 #: Below this step the loop stops with `STEP_TOO_SMALL`, s.
@@ -96,7 +99,7 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
     work = np.empty(body_work_size(n, seg))
     jacobian = np.empty(body_jacobian_size(n))
     body_arrays = (n, seg, joints, work, jacobian)
-    muscles = (n, nu, width, units, profiles)
+    muscles = (n, nu, width, units, profiles, NEWTON_FRACTION * atol)
     n_contacts = seg.shape[0] - int(seg[0, SEG_COUNT_COLUMN])
     heights = np.empty(n_contacts)
     heights_end = np.empty(n_contacts)

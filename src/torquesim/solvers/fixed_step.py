@@ -525,7 +525,9 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
     cold IMEX run compiled 1.3 s more with the explicit stage's root finder in it). The joint
     angles are q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]), the activation profiles are
     evaluated at every stage time. Result into y_new[2n:]. ``muscles`` = (n, number of units,
-    profile row width, flat units, flat profiles).
+    profile row width, flat units, flat profiles, the implicit stages' Newton tolerance on a
+    unit's state in rad: `unit_implicit_ce_velocity`'s ``state_tolerance``, 0 in the
+    fixed-step loops).
 
     A stage with a_ss = 0 evaluates the units' rates (`unit_rates`); one with a_ss > 0 solves
     each unit's stage equation for its CE velocity (`unit_implicit_ce_velocity`; with
@@ -541,7 +543,7 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
     implicit stage equations solved and their residual evaluations (`NFEV_MUSCLE`,
     `IMPLICIT_SOLVES`, `NEWTON_ITERATIONS`).
     """
-    n, nu, width, units, profiles = muscles
+    n, nu, width, units, profiles, newton_tolerance = muscles
     if implicit is None:
         a, weights, c = _RK4_A, _RK4_B, _RK4_C
     else:
@@ -601,7 +603,8 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
                         level = stage_a
                     d = units[o + UNIT_DIRECTION]
                     w, count = unit_implicit_ce_velocity(d * (stage[i] - psi), stage[i], d, gh,
-                                                         level, units, b[_W, u], o)
+                                                         level, units, b[_W, u], o,
+                                                         newton_tolerance)
                     solves += count
                     b[_W, u] = w
                     b[_K1 + s, i] = d * w
@@ -622,7 +625,7 @@ def _muscles_at_step_start(muscles, t, y, hm, b, stats, dynamics):
     function of its own, called once a step: it is compiled once for each ``dynamics``
     (`unit_rates`) and shared by every partitioned technique and body, where inlined in
     `rk4_partitioned` each of the loop's kinds compiled the units' rates again."""
-    n, nu, width, units, profiles = muscles
+    n, nu, width, units, profiles, _ = muscles
     for j in range(n):
         b[_TORQUE0, j] = 0.0
     for u in range(nu):
@@ -679,7 +682,7 @@ def rk4_partitioned(system, h, n_steps, coupling, out, stats, body, dynamics, im
     work = np.empty(body_work_size(n, seg))
     jacobian = np.empty(0 if implicit_body is None else body_jacobian_size(n))
     body_arrays = (n, seg, joints, work, jacobian)
-    muscles = (n, nu, width, units, profiles)
+    muscles = (n, nu, width, units, profiles, 0.0)
     q_prev = out[0, :n].copy()
     torque_prev = np.empty(n)
     for u in range(nu):

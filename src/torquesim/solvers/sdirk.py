@@ -41,7 +41,7 @@ def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity
 
 @njit(cache=True, error_model="numpy")
 def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, activation, p,
-                              guess, o=0):
+                              guess, o=0, state_tolerance=0.0):
     """CE velocity w (rad/s) of one implicit (diagonally implicit Runge-Kutta) stage.
 
     The stage state is θ_cc = θ_cc,known + sign·γh·w (sign d: +1 flexor, −1 extensor, whose CE
@@ -59,7 +59,10 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
     w = 0, so every later step stays on one smooth branch. G(−ω_max) is evaluated only when
     the iteration would leave the bracket below (or close on its lower end): away from the
     clamp an iterate with G > 0 proves the root above −ω_max, and the iterates are those of
-    checking the clamp first, one residual evaluation fewer. Returns (w, residual
+    checking the clamp first, one residual evaluation fewer. The iteration stops once an update
+    is below 1e-12·(1 + |w|) rad/s, or moves the stage state θ_cc by at most
+    ``state_tolerance`` (rad; 0, the default, iterates to round-off): Newton's convergence is
+    quadratic, so the update returned is far more accurate than that. Returns (w, residual
     evaluations).
     """
     wmax = p[o + OMEGA_MAX]
@@ -94,7 +97,7 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
         if (w_new > 0.0) != (w > 0.0) and w != 0.0 and lo < 0.0 < hi:
             w = 0.0  # evaluate at the kink next: it splits the bracket into smooth branches
             continue
-        if abs(w_new - w) <= 1e-12 * (1.0 + abs(w)):
+        if abs(w_new - w) <= max(1e-12 * (1.0 + abs(w)), state_tolerance / gamma_h):
             return w_new, evaluations
         w = w_new
     return w, evaluations
