@@ -269,6 +269,40 @@ def test_the_clamp_checked_on_demand_gives_the_same_velocity_with_fewer_evaluati
         assert evaluations <= evaluations_before
 
 
+@settings(max_examples=300, deadline=None)
+@given(stretch=st.floats(-0.05, 0.6), theta_cc=st.floats(-0.5, 2.5), a=st.floats(0.0, 1.0),
+       gamma_h=st.floats(1e-6, 0.02), sign=st.sampled_from([1.0, -1.0]),
+       guess=st.floats(-30.0, 30.0), flexor=st.booleans(),
+       tolerance=st.sampled_from([1e-3, 1e-5, 1e-7]))
+def test_a_state_tolerance_stops_early_within_it(stretch, theta_cc, a, gamma_h, sign, guess,
+                                                 flexor, tolerance):
+    """With a tolerance on the stage state (the error-controlled loop's 0.1·atol) the solve
+    stops once an update moves θ_cc by at most that: its stage state is then within the
+    tolerance of the solve to round-off's (Newton's quadratic convergence makes it far
+    closer), in at most as many residual evaluations."""
+    p = PF if flexor else PE
+    exact, evaluations = unit_implicit_ce_velocity(stretch, theta_cc, sign, gamma_h, a, p,
+                                                   guess)
+    w, early = unit_implicit_ce_velocity(stretch, theta_cc, sign, gamma_h, a, p, guess, 0,
+                                         tolerance)
+    assert early <= evaluations
+    assert gamma_h * abs(w - exact) <= tolerance
+
+
+def test_a_state_tolerance_saves_iterations_from_a_close_guess():
+    """From a guess 1e-3 rad/s off the root (the error-controlled loop's seeds are of this
+    kind), a tolerance of 1e-6 rad at γh = 0.3 ms takes one residual evaluation and lands
+    within 1e-10 rad of the root's stage state; to round-off takes 3."""
+    gamma_h = 0.3e-3
+    exact, _ = unit_implicit_ce_velocity(0.05, 1.0, 1.0, gamma_h, 0.6, PF, 0.0)
+    assert 0.0 < exact < PF[tg.OMEGA_MAX]  # a root inside the bracket, not a clamp
+    guess = exact + 1e-3
+    _, evaluations = unit_implicit_ce_velocity(0.05, 1.0, 1.0, gamma_h, 0.6, PF, guess)
+    w, early = unit_implicit_ce_velocity(0.05, 1.0, 1.0, gamma_h, 0.6, PF, guess, 0, 1e-6)
+    assert (early, evaluations) == (1, 3)
+    assert gamma_h * abs(w - exact) < 1e-10
+
+
 def test_implicit_stage_tends_to_the_explicit_velocity_for_a_tiny_step():
     for stretch in (0.0005, 0.05, 0.2, 0.4):
         explicit = tg.unit_ce_velocity(stretch, 0.3, 0.3, PF)

@@ -19,6 +19,12 @@ from ..model.torque_generator import (
     torque_angle_slope,
 )
 
+#: An update of the CE velocity below this fraction of ω_max counts as within Newton's
+#: quadratic convergence (where the error left is far below the update), for the stage-state
+#: tolerance of `unit_implicit_ce_velocity`: a larger one may still be far from the root when
+#: γh is small, though it moves the state little.
+QUADRATIC_REGIME = 0.01
+
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity_activation, p,
@@ -61,9 +67,9 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
     clamp an iterate with G > 0 proves the root above −ω_max, and the iterates are those of
     checking the clamp first, one residual evaluation fewer. The iteration stops once an update
     is below 1e-12·(1 + |w|) rad/s, or moves the stage state θ_cc by at most
-    ``state_tolerance`` (rad; 0, the default, iterates to round-off): Newton's convergence is
-    quadratic, so the update returned is far more accurate than that. Returns (w, residual
-    evaluations).
+    ``state_tolerance`` (rad; 0, the default, iterates to round-off) while being below
+    `QUADRATIC_REGIME`·ω_max: there Newton's convergence is quadratic, so the update returned
+    is far more accurate than the tolerance. Returns (w, residual evaluations).
     """
     wmax = p[o + OMEGA_MAX]
     cap_a = max(activation, ACTIVATION_FLOOR)
@@ -97,7 +103,8 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
         if (w_new > 0.0) != (w > 0.0) and w != 0.0 and lo < 0.0 < hi:
             w = 0.0  # evaluate at the kink next: it splits the bracket into smooth branches
             continue
-        if abs(w_new - w) <= max(1e-12 * (1.0 + abs(w)), state_tolerance / gamma_h):
+        if abs(w_new - w) <= max(1e-12 * (1.0 + abs(w)),
+                                 min(state_tolerance / gamma_h, QUADRATIC_REGIME * wmax)):
             return w_new, evaluations
         w = w_new
     return w, evaluations
