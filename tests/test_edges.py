@@ -403,3 +403,27 @@ def test_an_error_estimate_that_cannot_be_made_is_said_in_words():
     run = ts.simulate(ts.default_model(), "imex", 3.0)
     assert math.isinf(run.settings["estimated_error_rad"])
     assert "no error estimate stands" in run.message and "inf" not in run.message
+
+
+@pytest.mark.parametrize("method", ["reference", "imex-ros2-adaptive"])
+def test_an_output_grid_made_to_divide_any_duration(method):
+    """The adaptive methods' output grid: 1 ms, or where that does not divide the duration
+    the largest step below it that does (as the fixed steps' default), down to one interval
+    for a run shorter than 1 ms; given explicitly, one that does not divide is refused."""
+    model = ts.default_model()
+    for duration in (0.0123, 0.0004):
+        run = ts.simulate(model, method, duration=duration, tolerance=None)
+        h = run.settings["output_step"]
+        assert h <= 1e-3 and run.time[-1] == pytest.approx(duration)
+        assert np.allclose(np.diff(run.time), h) and h > 1e-3 * 12 / 13 * (duration > 1e-3)
+    with pytest.raises(ts.ModelError, match="output_step"):
+        ts.simulate(model, method, duration=0.0123, output_step=1e-3)
+
+
+def test_the_error_controlled_tolerance_is_bounded_on_the_command_line(capsys):
+    """Below 1e-10 rad the round-off of the millions of steps approaches the tolerance and the
+    accuracy check would take tens of millions more: refused in one line naming --atol's
+    field and its range."""
+    err = _error_line(capsys, ["simulate", "--model", "builtin:squat-jump", "--method",
+                               "imex-ros2-adaptive", "--atol", "1e-11"])
+    assert "atol" in err and "[1e-10, 1]" in err

@@ -13,11 +13,14 @@ import click
 from .errors import ModelError, SimulationError
 from .model.preset_names import preset_list
 from .solvers.techniques import (
+    ERROR_CONTROL_ATOL,
     ERROR_CONTROLLED_METHODS,
     FIT_METHODS,
     FIXED_STEP_METHODS,
     METHODS,
+    MIN_CONTROL_ATOL,
     TECHNIQUES,
+    VELOCITY_SCALE,
 )
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -162,8 +165,9 @@ def cli(context):
                    "OpenSim external-loads .mot (total at the centre of pressure, and per "
                    "contact point).")
 @click.option("--atol", type=float, default=None,
-              help="imex-ros2-adaptive: the angle tolerance of each step, rad (speeds 300x "
-                   "it per second). Default 1e-4. Bounds [1e-12, 1].")
+              help="imex-ros2-adaptive: the angle tolerance of each step, rad (speeds "
+                   f"{VELOCITY_SCALE:g}x it per second). Default {ERROR_CONTROL_ATOL:g}. "
+                   f"Bounds [{MIN_CONTROL_ATOL:g}, 1].")
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Fixed-step methods: estimate the max angle error against a run at twice "
                    "the step (half a run's work; at half the step when that is above the "
@@ -426,12 +430,17 @@ def _announce_size(model, method, step, duration, out_path) -> None:
     """One line on stderr before a run whose steps or output table are large (``step``
     None: the default step, `simulate`'s first choice)."""
     from .errors import check_range
-    from .solvers.simulation import DEFAULT_OUTPUT_STEP, default_fixed_step, step_count
+    from .solvers.simulation import (
+        DEFAULT_OUTPUT_STEP,
+        default_fixed_step,
+        divisor_step,
+        step_count,
+    )
 
     span = model.duration if duration is None else check_range(
         "duration", duration, 0.0, 600.0, low_open=True, unit="s")
     if method not in FIXED_STEP_METHODS:  # the reference: its output grid
-        rows = round(span / DEFAULT_OUTPUT_STEP) + 1
+        rows = round(span / divisor_step(span, DEFAULT_OUTPUT_STEP)) + 1
         steps = 0
     else:
         steps = step_count(span, step or default_fixed_step(span))

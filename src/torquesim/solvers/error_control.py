@@ -52,12 +52,8 @@ from ..model.state import unit_states_start
 from . import fixed_step as fs
 from .coupling_layout import ABSOLUTE_TOLERANCE, MAX_STEP, RELATIVE_TOLERANCE
 from .rates import check_unit_kinds, flat_arrays, joint_muscle_torques
+from .techniques import VELOCITY_SCALE
 
-#: Speeds are held to this many times the angle tolerance per second (rad/s per rad): a speed
-#: error carried over 3.3 ms moves the angle by the angle tolerance. Chosen on the squat jump
-#: and the drop landing (benchmarks/bench_error_control.py): 100, 200, 300, 500, 1000 and 3000
-#: tried, 300 the least work at 0.1° and 0.01° on both; 10 cost the jump 3-4x more steps.
-VELOCITY_SCALE = 300.0
 #: The units' implicit stages iterate until an update moves a unit's state by at most this
 #: fraction of the angle tolerance (`unit_implicit_ce_velocity`'s ``state_tolerance``).
 NEWTON_FRACTION = 0.1

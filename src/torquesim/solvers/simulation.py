@@ -20,9 +20,11 @@ from .error_control import MIN_STEP as MIN_CONTROLLED_STEP
 from .rates import compiled_derivative
 from .result import RunCost, SimulationResult, StabilityReport
 from .techniques import (
+    ERROR_CONTROL_ATOL,
     ERROR_CONTROLLED_METHODS,
     FIXED_STEP_METHODS,
     METHODS,
+    MIN_CONTROL_ATOL,
     SCIPY_METHODS,
     default_coupling,
     explicit_muscles,
@@ -42,8 +44,6 @@ REFERENCE_ATOL = 1.0e-12
 #: 1.1 s, at 1e-10, the two within 3e-10 rad of each other and of RK4 at 2.5 µs.
 GROUND_REFERENCE_ATOL = 1.0e-10
 DEFAULT_OUTPUT_STEP = 1.0e-3
-#: The error-controlled technique's default angle tolerance, rad (`error_control`).
-ERROR_CONTROL_ATOL = 1.0e-4
 #: The error-controlled technique's largest step, s (`largest_step`).
 MAX_CONTROLLED_STEP = 10e-3
 #: Default accuracy check of fixed-step runs in `simulate`: warn when the estimated max
@@ -73,7 +73,7 @@ def simulate(
     coupling: Coupling | None = None,
     rtol: float | None = None,
     atol: float | None = None,
-    output_step: float = DEFAULT_OUTPUT_STEP,
+    output_step: float | None = None,
     initial_state=None,
     check: bool = True,
     advise: bool = True,
@@ -102,8 +102,10 @@ def simulate(
         ``result.settings["step_note"]``.
     duration : float, optional
         Overrides the model's duration, s.
-    output_step : float
-        Output grid of the adaptive solvers, s. Default 1 ms.
+    output_step : float, optional
+        Output grid of the adaptive solvers (SciPy's, the reference and the error-controlled
+        technique), s; it must divide the duration. Default 1 ms, or the largest step below
+        it that divides the duration.
     initial_state : array, optional
         y(0) = (q, q̇, θ_cc of every unit) replacing the static-equilibrium start.
     check : bool
@@ -136,6 +138,8 @@ def simulate(
     if duration is not None:
         model = model.replace(duration=check_range("duration", duration, 0.0, 600.0,
                                                    low_open=True, unit="s"))
+    if output_step is None:
+        output_step = divisor_step(model.duration, DEFAULT_OUTPUT_STEP)
     start = model.initial_state()
     packed = model.pack(start.levels)
     y0 = start.state if initial_state is None else _check_state(initial_state, model)
@@ -159,7 +163,7 @@ def simulate(
     elif method in ERROR_CONTROLLED_METHODS:
         atol = ERROR_CONTROL_ATOL if atol is None else atol
         rtol = 0.0 if rtol is None else rtol
-        check_range("atol", atol, 1e-12, 1.0, unit="rad")
+        check_range("atol", atol, MIN_CONTROL_ATOL, 1.0, unit="rad")
         check_range("rtol", rtol, 0.0, 1.0)
         result = _error_controlled(model, packed, y0, method, atol, rtol, output_step)
         if tolerance is not None and result.success:

@@ -114,6 +114,18 @@ TECHNIQUES: tuple[Technique, ...] = (
 )
 
 
+#: The error-controlled technique's angle tolerance, rad: its default, and its smallest (at
+#: 1e-10 the squat jump takes 1.2 million steps; below it the round-off of millions of
+#: steps, 1e-16 each, approaches the tolerance, and the accuracy check's run at a 4x tighter
+#: tolerance takes tens of millions).
+ERROR_CONTROL_ATOL = 1.0e-4
+MIN_CONTROL_ATOL = 1.0e-10
+#: Speeds are held to this many times the angle tolerance per second (rad/s per rad): a speed
+#: error carried over 3.3 ms moves the angle by the angle tolerance. Chosen on the squat jump
+#: and the drop landing (benchmarks/bench_error_control.py): 100, 200, 300, 500, 1000 and 3000
+#: tried, 300 the least work at 0.1° and 0.01° on both; 10 cost the jump 3-4x more steps.
+VELOCITY_SCALE = 300.0
+
 #: The fixed-step methods `simulate` takes, each the name of its registered default
 #: technique (the adaptive ones are "reference" and "scipy:NAME").
 FIXED_STEP_METHODS = tuple(t.method for t in TECHNIQUES if not t.adaptive and t.name == t.method)
