@@ -171,8 +171,9 @@ def cli(context):
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Fixed-step methods: estimate the max angle error against a run at twice "
                    "the step (half a run's work; at half the step when that is above the "
-                   "tolerance); imex-ros2-adaptive: against a run at --atol 4x tighter; and "
-                   "warn above this many degrees; 0 turns the estimate off.")
+                   "tolerance); imex-ros2-adaptive: against a run at --atol 4x tighter and half "
+                   "its largest step; and warn above this many degrees; 0 turns the estimate "
+                   "off.")
 def simulate(model_path, method, step, duration, out_path, plot_path, animation_path,
              grf_path, atol, tolerance):
     """Simulate the model and print a summary (or write --out / --plot)."""
