@@ -55,8 +55,13 @@ from .rates import check_unit_kinds, flat_arrays, joint_muscle_torques
 from .techniques import VELOCITY_SCALE
 
 #: The units' implicit stages iterate until an update moves a unit's state by at most this
-#: fraction of the angle tolerance (`unit_implicit_ce_velocity`'s ``state_tolerance``).
+#: fraction of the angle tolerance (`unit_implicit_ce_velocity`'s ``state_tolerance``, as
+#: CVODE's nonlinear tolerance), and at most by `NEWTON_MAX_STATE_ERROR` rad: at a loose
+#: tolerance every step is the largest, and unit states solved to a tenth of it made those
+#: runs' errors erratic (the arm raise at atol 1 rad: 0.07° off one run, 1.6° the next
+#: tolerance down; its accuracy check 10x off).
 NEWTON_FRACTION = 0.1
+NEWTON_MAX_STATE_ERROR = 1e-5
 #: An event (a contact point's height changing sign) is located within this time, s.
 EVENT_TIME_TOLERANCE = 1e-6
 #: Below this step the loop stops with `STEP_TOO_SMALL`, s.
@@ -95,7 +100,8 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
     work = np.empty(body_work_size(n, seg))
     jacobian = np.empty(body_jacobian_size(n))
     body_arrays = (n, seg, joints, work, jacobian)
-    muscles = (n, nu, width, units, profiles, NEWTON_FRACTION * atol)
+    muscles = (n, nu, width, units, profiles,
+               min(NEWTON_FRACTION * atol, NEWTON_MAX_STATE_ERROR))
     n_contacts = seg.shape[0] - int(seg[0, SEG_COUNT_COLUMN])
     heights = np.empty(n_contacts)
     heights_end = np.empty(n_contacts)
