@@ -58,8 +58,8 @@ from .techniques import VELOCITY_SCALE
 #: fraction of the angle tolerance (`unit_implicit_ce_velocity`'s ``state_tolerance``, as
 #: CVODE's nonlinear tolerance), and at most by `NEWTON_MAX_STATE_ERROR` rad: at a loose
 #: tolerance every step is the largest, and unit states solved to a tenth of it made those
-#: runs' errors erratic (the arm raise at atol 1 rad: 0.07° off one run, 1.6° the next
-#: tolerance down; its accuracy check 10x off).
+#: runs' errors erratic (the arm raise 0.07° off at atol 1 and 1e-2 rad, 2.5° at 1e-3; its
+#: accuracy check at 1 rad 10x off).
 NEWTON_FRACTION = 0.1
 NEWTON_MAX_STATE_ERROR = 1e-5
 #: An event (a contact point's height changing sign) is located within this time, s.
