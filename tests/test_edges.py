@@ -427,3 +427,19 @@ def test_the_error_controlled_tolerance_is_bounded_on_the_command_line(capsys):
     err = _error_line(capsys, ["simulate", "--model", "builtin:squat-jump", "--method",
                                "imex-ros2-adaptive", "--atol", "1e-11"])
     assert "atol" in err and "[1e-10, 1]" in err
+
+
+def test_the_output_grid_is_an_option_of_the_methods_that_choose_their_steps(tmp_path, capsys):
+    """`--output-step` writes an error-controlled run at its multiples (0.1 ms: ten times
+    the rows of the default 1 ms); a fixed-step method, which writes every step, refuses it
+    in one line."""
+    out = tmp_path / "fine.csv"
+    assert main(["simulate", "--model", "builtin:elbow-curl", "--method", "imex-ros2-adaptive",
+                 "--output-step", "0.1ms", "--duration", "0.5", "--out", str(out)]) == 0
+    time = np.loadtxt(out, delimiter=",", skiprows=1, usecols=0)
+    assert time.size == 5001 and np.allclose(np.diff(time), 1e-4)
+    capsys.readouterr()
+    err = _error_line(capsys, ["simulate", "--method", "imex", "--output-step", "1ms",
+                               "--out", str(tmp_path / "x.csv")])
+    assert "--output-step" in err and "imex-ros2-adaptive" in err
+    assert not (tmp_path / "x.csv").exists()

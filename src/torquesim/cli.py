@@ -150,7 +150,12 @@ def cli(context):
                    "the duration. Default: 0.1 ms (else the largest step below it that "
                    "divides the duration), or where that breaks the explicit part's "
                    "stability limit on the model (stiff units or contacts), the largest step "
-                   "a run verifies, said in a note. Output grid of 'reference' is 1 ms.")
+                   "a run verifies, said in a note.")
+@click.option("--output-step", type=TIME, default=None,
+              help="Output grid of the methods that choose their own steps (reference, "
+                   "imex-ros2-adaptive; s, suffixes ms/us accepted): their state is written "
+                   "at its multiples. Must divide the duration. Default: 1 ms, else the "
+                   "largest step below it that divides the duration.")
 @click.option("--duration", type=TIME, default=None, help="Override the model's duration (s).")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Write the trajectory: .csv or OpenSim .sto/.mot (rad, SI), with a "
@@ -174,8 +179,8 @@ def cli(context):
                    "tolerance); imex-ros2-adaptive: against a run at --atol 4x tighter and half "
                    "its largest step; and warn above this many degrees; 0 turns the estimate "
                    "off.")
-def simulate(model_path, method, step, duration, out_path, plot_path, animation_path,
-             grf_path, atol, tolerance):
+def simulate(model_path, method, step, output_step, duration, out_path, plot_path,
+             animation_path, grf_path, atol, tolerance):
     """Simulate the model and print a summary (or write --out / --plot)."""
     import numpy as np
 
@@ -200,13 +205,17 @@ def simulate(model_path, method, step, duration, out_path, plot_path, animation_
     if step is not None and controlled:
         raise ModelError("--step", f"method {method!r} chooses its own steps; allowed: "
                          f"--step with {', '.join(FIXED_STEP_METHODS)}")
+    if output_step is not None and fixed:
+        raise ModelError("--output-step", f"method {method!r} writes every step (--step); "
+                         "allowed: --output-step with the methods that choose their own "
+                         "steps (reference, " + ", ".join(ERROR_CONTROLLED_METHODS) + ")")
     if atol is not None and not controlled:
         raise ModelError("--atol", f"only method {', '.join(ERROR_CONTROLLED_METHODS)} takes "
                          "an angle tolerance")
     check = None if tolerance == 0 else _tolerance_rad(tolerance, "--tolerance")
-    _announce_size(model, method, step, duration, out_path)
+    _announce_size(model, method, step or output_step, duration, out_path)
     compiling_for(f"the {method} technique for {model_kind(model)}")
-    result = run(model, method, step, duration=duration, atol=atol,
+    result = run(model, method, step, duration=duration, atol=atol, output_step=output_step,
                  tolerance=check if fixed or controlled else None)
     if result.settings.get("step_note"):
         click.echo(f"note: {result.settings['step_note']}", err=True)
@@ -428,8 +437,9 @@ def _quiet_compiling(quiet: bool) -> None:
 
 
 def _announce_size(model, method, step, duration, out_path) -> None:
-    """One line on stderr before a run whose steps or output table are large (``step``
-    None: the default step, `simulate`'s first choice)."""
+    """One line on stderr before a run whose steps or output table are large (``step``: a
+    fixed-step method's step, or the output grid of the others; None: the default,
+    `simulate`'s first choice)."""
     from .errors import check_range
     from .solvers.simulation import (
         DEFAULT_OUTPUT_STEP,
@@ -441,7 +451,7 @@ def _announce_size(model, method, step, duration, out_path) -> None:
     span = model.duration if duration is None else check_range(
         "duration", duration, 0.0, 600.0, low_open=True, unit="s")
     if method not in FIXED_STEP_METHODS:  # the reference: its output grid
-        rows = round(span / divisor_step(span, DEFAULT_OUTPUT_STEP)) + 1
+        rows = round(span / (step or divisor_step(span, DEFAULT_OUTPUT_STEP))) + 1
         steps = 0
     else:
         steps = step_count(span, step or default_fixed_step(span))
