@@ -72,8 +72,8 @@ def main() -> None:
     for name in args.models.split(","):
         model = ts.load_model(f"builtin:{name}")
         reference = ts.simulate(model, "reference", output_step=GRID)
-        rows, chosen = {}, {}
-        for ladder, jobs in ladders(model).items():
+        rows, chosen, runs = {}, {}, ladders(model)
+        for ladder, jobs in runs.items():
             for job in jobs:
                 if job not in rows:
                     result = run(model, *job)
@@ -95,7 +95,7 @@ def main() -> None:
         print(f"\n{name}: baseline {BASELINE[0]} at {BASELINE[1] * 1e3:g} ms: error "
               f"{base['error']:.4f}°, work {base['work']:.0f} body evaluations, "
               f"{base['wall'] * 1e3:.2f} ms")
-        for ladder in ladders(model):
+        for ladder in runs:
             print(f"\nThe cheapest run of each technique on {ladder}:\n")
             print("| accuracy | technique | setting | error | work | work ratio | wall | "
                   "wall ratio |")

@@ -414,8 +414,10 @@ def test_an_output_grid_made_to_divide_any_duration(method):
     for duration in (0.0123, 0.0004):
         run = ts.simulate(model, method, duration=duration, tolerance=None)
         h = run.settings["output_step"]
-        assert h <= 1e-3 and run.time[-1] == pytest.approx(duration)
-        assert np.allclose(np.diff(run.time), h) and h > 1e-3 * 12 / 13 * (duration > 1e-3)
+        intervals = round(duration / h)
+        assert h <= 1e-3 and intervals * h == pytest.approx(duration)
+        assert np.allclose(np.diff(run.time), h) and run.time[-1] == pytest.approx(duration)
+        assert intervals == 1 or duration / (intervals - 1) > 1e-3  # the largest such grid
     with pytest.raises(ts.ModelError, match="output_step"):
         ts.simulate(model, method, duration=0.0123, output_step=1e-3)
 

@@ -441,17 +441,12 @@ def _announce_size(model, method, step, duration, out_path) -> None:
     fixed-step method's step, or the output grid of the others; None: the default,
     `simulate`'s first choice)."""
     from .errors import check_range
-    from .solvers.simulation import (
-        DEFAULT_OUTPUT_STEP,
-        default_fixed_step,
-        divisor_step,
-        step_count,
-    )
+    from .solvers.simulation import default_fixed_step, default_output_step, step_count
 
     span = model.duration if duration is None else check_range(
         "duration", duration, 0.0, 600.0, low_open=True, unit="s")
     if method not in FIXED_STEP_METHODS:  # the reference: its output grid
-        rows = round(span / (step or divisor_step(span, DEFAULT_OUTPUT_STEP))) + 1
+        rows = round(span / (step or default_output_step(span))) + 1
         steps = 0
     else:
         steps = step_count(span, step or default_fixed_step(span))

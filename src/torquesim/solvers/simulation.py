@@ -139,7 +139,7 @@ def simulate(
         model = model.replace(duration=check_range("duration", duration, 0.0, 600.0,
                                                    low_open=True, unit="s"))
     if output_step is None:
-        output_step = divisor_step(model.duration, DEFAULT_OUTPUT_STEP)
+        output_step = default_output_step(model.duration)
     start = model.initial_state()
     packed = model.pack(start.levels)
     y0 = start.state if initial_state is None else _check_state(initial_state, model)
@@ -311,6 +311,12 @@ ADVICE_MAX_STEPS = 1_000_000
 def divisor_step(duration: float, step: float) -> float:
     """The largest step ≤ ``step`` that divides ``duration``, s."""
     return duration / math.ceil(duration / step - 1e-9)
+
+
+def default_output_step(duration: float) -> float:
+    """The adaptive methods' default output grid for ``duration`` (s): `DEFAULT_OUTPUT_STEP`,
+    or the largest step below it that divides the duration."""
+    return divisor_step(duration, DEFAULT_OUTPUT_STEP)
 
 
 def _max_difference(coarse, fine) -> float:
