@@ -445,3 +445,16 @@ def test_the_output_grid_is_an_option_of_the_methods_that_choose_their_steps(tmp
                                "--out", str(tmp_path / "x.csv")])
     assert "--output-step" in err and "imex-ros2-adaptive" in err
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_failed_run_gives_its_advice_once():
+    """The drop landing at a 10 ms imex-ros2 step leaves the possible range at the impact;
+    the error names the verified step once (it said 'use a smaller step …' before the
+    verified advice too), and a run at that step succeeds."""
+    landing = ts.load_model("builtin:drop-landing")
+    with pytest.raises(ts.SimulationError) as failed:
+        ts.simulate(landing, "imex-ros2", 1e-2)
+    message = str(failed.value)
+    assert message.count("use ") == 1 and "a run at that step was checked" in message, message
+    safe = float(message.split("step ≤ ")[1].split(" ms")[0]) * 1e-3
+    assert 0.0 < safe < 1e-2 and ts.simulate(landing, "imex-ros2", safe).success

@@ -385,7 +385,7 @@ def _with_advice(result: SimulationResult, safe: float | None) -> SimulationResu
     if result.success:
         message = stability.message()
     else:
-        head = result.message.split("; use a step")[0].split("; use method")[0]
+        head = result.message.split("; use ")[0]
         advice = _advice_text(stability.largest_safe_step, safe is not None,
                               math.isinf(stability.limit) or stability.in_contact)
         message = f"{head}; {advice}"
