@@ -3,6 +3,8 @@ target fails its own row, reruns do no finished work twice, a sweep with a known
 the same seed gives the same table whatever the number of workers."""
 
 
+import re
+
 import numpy as np
 import pytest
 
@@ -120,8 +122,9 @@ def test_finished_chunks_are_not_simulated_again(client, tmp_path, monkeypatch):
 
 
 def test_a_failing_sample_fails_its_own_row(client):
-    """An SE stiffness the model refuses (≤ 0) fails its row with the one-line error."""
-    table, _ = sweep("builtin:elbow-curl", ["flexor.se_stiffness=uniform(-100,600)"],
+    """An SE stiffness the model refuses (≤ 0, in a normal distribution's tail) fails its row
+    with the one-line error."""
+    table, _ = sweep("builtin:elbow-curl", ["flexor.se_stiffness=normal(200,300)"],
                      samples=8, seed=3, chunk=8, client=client, step=2e-3)
     bad = table[table["flexor.se_stiffness"] <= 0]
     assert len(bad) > 0 and set(bad["accuracy"]) == {"failed"}
@@ -204,6 +207,21 @@ def test_sample_matrix_crosses_grids_with_random_draws():
 def test_bad_distributions_are_refused(text):
     with pytest.raises(ts.ModelError):
         parse_vary(text)
+
+
+@pytest.mark.parametrize("vary, reaches", [
+    ("flexor.ramp1.level=uniform(0,2)", "reaches 2; allowed [0, 1]"),
+    ("flexor.se_stiffness=grid(0,600,3)", "reaches 0; allowed (0, 1e+06]"),
+    ("elbow.initial_angle=uniform(-4,1)", "reaches -4; allowed [-3.14159, 3.14159]")])
+def test_a_distribution_beyond_its_field_s_range_is_refused_before_any_run(vary, reaches):
+    """A uniform or grid distribution whose end lies outside the field's range (half or all
+    of its samples would fail) is one error naming the end and the range; an open end a
+    uniform cannot reach (a stiffness's 0) is allowed."""
+    with pytest.raises(ts.ModelError, match=r"--vary: .*" + re.escape(reaches)):
+        sweep("builtin:elbow-curl", [vary], samples=4, method="imex", step=1e-3)
+    table, _ = sweep("builtin:elbow-curl", ["flexor.se_stiffness=uniform(0,600)"], samples=2,
+                     method="imex", step=1e-3)
+    assert set(table["accuracy"]) == {"ok"}
 
 
 def test_batch_cli_bad_input_is_one_line_exit_2(tmp_path, capsys):

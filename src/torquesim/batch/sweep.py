@@ -300,6 +300,7 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
     n_steps = step_count(chain.duration, step, "--step")
     paths = [d.path for d in distributions]
     for d in distributions:  # every path and a typical value checked before any work
+        _check_ends(chain, d)
         typical = d.a if d.kind != "uniform" else 0.5 * (d.a + d.b)
         set_parameter(chain, d.path, typical, "--vary")
     values = sample_matrix(distributions, samples, seed, sobol)
@@ -352,6 +353,26 @@ def sweep(model, vary, *, samples: int = 1000, seed: int = 1, sobol: bool = Fals
                      "method": method, "step_s": step, "chunk": chunk,
                      "tolerance_deg": math.degrees(tolerance)}, outcome_columns(chain))
     return table, histories
+
+
+def _check_ends(chain: ChainModel, d: Distribution) -> None:
+    """Refuse a uniform or grid distribution that reaches beyond its field's range (its
+    samples there would all fail): its ends are set on the model (a uniform's a hair inside,
+    as its samples are, so that an open end such as a stiffness's 0 is allowed). Ends the
+    model refuses for another reason (a start the units cannot hold) are left to the
+    samples, which record it."""
+    if d.kind not in ("uniform", "grid"):
+        return  # unbounded: a sample in a tail is recorded as failed
+    inset = 1e-9 * (d.b - d.a) if d.kind == "uniform" else 0.0
+    for end in (d.a + inset, d.b - inset):
+        try:
+            set_parameter(chain, d.path, end, "--vary")
+        except ModelError as exc:
+            if "out of range; allowed " in exc.reason:
+                spec = f"{d.a:g},{d.b:g}" + (f",{d.n}" if d.kind == "grid" else "")
+                allowed = exc.reason.split("out of range; allowed ", 1)[1]
+                raise ModelError("--vary", f"{d.path}={d.kind}({spec}) reaches {end:.6g}; "
+                                 f"allowed {allowed}") from None
 
 
 def _whole_number(field: str, value, low: int, high: int) -> int:
