@@ -152,7 +152,7 @@ def test_a_huge_run_is_announced_before_it_starts(tmp_path, capsys, monkeypatch)
     (["--bound", "elbow.flexor.ramp1.level=0.2,0.2"], "--bound"),  # names the option
     (["--step", "1e-9"], "step"),
     (["--freeze", "elbow.flexor.ramp1.delay=0.9", "--bound",
-      "elbow.flexor.ramp1.delay=0,0.5"], "freeze"),
+      "elbow.flexor.ramp1.delay=0,0.5"], "--freeze elbow_flexor.ramp1.delay"),
     (["--freeze", "elbow.flexor.ramp1.delay=0.1", "--freeze",
       "elbow.flexor.ramp1.delay=0.2"], "--freeze"),
     (["--column", "elbow=time"], "time"),

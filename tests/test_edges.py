@@ -352,6 +352,10 @@ def test_a_missing_thigh_length_is_named_not_the_posture(tmp_path, capsys):
     (["--timing-error", "5"], "--timing-error"),
     (["--window-delay", "-1"], "--window-delay"),
     (["--minimise", "time_to:elbow=10deg"], "--minimise"),
+    (["--freeze", "elbow_flexor.ramp1.level=7"], "--freeze elbow_flexor.ramp1.level: 7 is "
+                                                  "out of range; allowed [0, 1]"),
+    (["--minimise", "time_to:elbow=400"], "--minimise time_to:elbow=400: 400 is out of "
+                                          "range; allowed [-360, 360] deg"),
 ])
 def test_optimise_options_are_named_in_their_errors(tmp_path, capsys, argv, option):
     goal = [] if "--minimise" in argv else ["--minimise", "time_to:elbow=90deg"]

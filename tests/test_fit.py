@@ -534,7 +534,8 @@ def test_target_columns_are_matched_to_joints(tmp_path):
 
 @pytest.mark.parametrize("extra, field", [
     (["--bound", "flexor.ramp1.delay=0"], "--bound"),
-    (["--freeze", "nonsense=1"], "freeze"),
+    (["--freeze", "nonsense=1"], "--freeze"),
+    (["--freeze", "elbow_flexor.ramp1.level=7"], "--freeze elbow_flexor.ramp1.level: 7"),
     (["--step", "0"], "step"),
     (["--resume"], "--resume"),
     (["--target", "builtin:walk"], "target"),

@@ -967,10 +967,14 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
                 click.echo(f"warning: every target angle of {joint} is within ±3.2 degrees; "
                            "if the file is in radians, pass --angle-units rad", err=True)
     space = ParameterSpace.for_model(base, rest_level=rest_level)
-    for name, (low, high) in _parse_assignments(bounds, "--bound", 2).items():
-        space = space.with_bounds(name, low, high)
-    for name, (value,) in _parse_assignments(frozen, "--freeze", 1).items():
-        space = space.with_frozen(name, value)
+    try:
+        for name, (low, high) in _parse_assignments(bounds, "--bound", 2).items():
+            space = space.with_bounds(name, low, high)
+        for name, (value,) in _parse_assignments(frozen, "--freeze", 1).items():
+            space = space.with_frozen(name, value)
+    except ModelError as exc:
+        raise _as_option(exc, {"freeze": "--freeze", "bound": "--bound",
+                               "bounds": "--bound"}) from None
     weights = {j: v for j, (v,) in _parse_assignments(joint_weights, "--weight", 1).items()}
     settings = SearchSettings(search=search, seed=seed, starts=starts, iterations=iterations,
                               generations=generations, population_per_parameter=population,
@@ -1595,7 +1599,7 @@ def batch_sweep(model_path, vary, samples, seed, sobol, method, step, chunk, out
 OPTIMISE_OPTIONS = {"maximise": "--maximise", "minimise": "--minimise",
                     "constrain": "--constrain", "endstop_depth": "--endstop-depth",
                     "free": "--free",
-                    "frozen": "--freeze", "bounds": "--bound",
+                    "frozen": "--freeze", "freeze": "--freeze", "bounds": "--bound",
                     "timing_error": "--timing-error", "robust": "--robust", "step": "--step",
                     "method": "--method", "accuracy": "--accuracy",
                     "window.delay": "--window-delay",

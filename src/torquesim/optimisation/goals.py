@@ -272,8 +272,12 @@ def parse_goal(text: str, model, *, maximise: bool, field: str = "goal") -> Goal
         except ValueError:
             raise ModelError(field, f"{text!r}: {angle_text!r} is not an angle; allowed "
                              "e.g. 90deg or 1.57rad") from None
-        angle = angle if unit == "rad" else math.radians(angle)
-        check_range(f"{field}.angle", angle, -2 * math.pi, 2 * math.pi, unit="rad")
+        if unit == "rad":
+            check_range(f"{field}.{text.strip()}", angle, -2 * math.pi, 2 * math.pi,
+                        unit="rad")
+        else:
+            angle = math.radians(check_range(f"{field}.{text.strip()}", angle, -360.0,
+                                             360.0, unit="deg"))
         start = next(j.initial_angle for j in model.joints if j.name == joint)
         if abs(start - angle) <= 1e-9:
             raise ModelError(field, f"{text!r}: {joint} starts at {math.degrees(start):g} deg, "
