@@ -462,3 +462,23 @@ def test_a_failed_run_gives_its_advice_once():
     assert message.count("use ") == 1 and "a run at that step was checked" in message, message
     safe = float(message.split("step ≤ ")[1].split(" ms")[0]) * 1e-3
     assert 0.0 < safe < 1e-2 and ts.simulate(landing, "imex-ros2", safe).success
+
+
+def test_a_body_that_passes_through_the_ground_is_warned_about():
+    """Only the contact points meet the ground: the squat jump run for 3 s lands, falls over
+    and sinks through the ground (its centre of mass ends 1 m below it). The run warns at the
+    first time a joint or a centre of mass is 5 cm below the ground, with what to change; the
+    jump as given (0.55 s, flight included) does not."""
+    jump = ts.load_model("builtin:squat-jump")
+    for method, step in (("imex-ros2-adaptive", None), ("imex", 2.5e-4)):
+        run = ts.simulate(jump, method, step, duration=3.0, tolerance=None)
+        assert "passes through the ground" in run.message and "duration ≤" in run.message
+        said = next(part for part in run.message.split(" Also: ") if "passes through" in part)
+        when = float(said.split("at t = ")[1].split(" s")[0])
+        where = jump.kinematics(run.states[:, :jump.n_base + jump.n_joints])
+        lowest = np.minimum(where["joints"][..., 1].min(axis=1),
+                            where["centres"][..., 1].min(axis=1))
+        first = run.time[np.flatnonzero(lowest < -0.05)[0]]
+        assert when == pytest.approx(first, abs=1e-3) and 0.9 < when < 1.5
+        assert lowest[run.time < first].min() > -0.05
+    assert "ground" not in ts.simulate(jump, "imex-ros2-adaptive", tolerance=None).message
