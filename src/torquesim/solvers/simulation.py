@@ -184,7 +184,7 @@ def simulate(
             result = _with_tighter_estimate(result, model, packed, y0, method, name, tolerance)
     else:
         raise ModelError("method", f"{method!r} is not one of {', '.join(METHODS)} or scipy:NAME")
-    if result.success and model.contacts:
+    if model.contacts and result.states.shape[0] > 1:  # (a failed run: up to its failure)
         result = _with_ground_check(result, model)
     if check and not result.success:
         raise SimulationError(result.message)
@@ -202,7 +202,8 @@ def _with_ground_check(result: SimulationResult, model: ChainModel) -> Simulatio
     goes more than `THROUGH_GROUND` below the ground: only the contact points meet it, so
     the body passes through the ground and the motion from there on is not physical (the
     squat jump run for 3 s lands, falls and ends with its centre of mass 1 m underground)."""
-    where = model.kinematics(result.states[:, :model.n_base + model.n_joints])
+    states = result.states if result.success else result.states[:-1]  # (not the failure)
+    where = model.kinematics(states[:, :model.n_base + model.n_joints])
     heights = np.concatenate([where["joints"][..., 1], where["centres"][..., 1]], axis=1)
     below = np.flatnonzero(heights.min(axis=1) < -THROUGH_GROUND)
     if below.size == 0:
@@ -217,8 +218,8 @@ def _with_ground_check(result: SimulationResult, model: ChainModel) -> Simulatio
                f"below the ground: only the contact points ({points}) meet it, so the body "
                "passes through the ground and the motion from there on is not physical; end "
                f"the run before (duration ≤ {result.time[row]:.3g} s) or add contact points")
-    message = f"{result.message} Also: {warning}" if result.message else warning
-    return replace(result, message=message)
+    said = result.message.rstrip(".")
+    return replace(result, message=f"{said}. Also: {warning}" if said else warning)
 
 
 def _check_state(initial_state, model: ChainModel) -> np.ndarray:
@@ -664,8 +665,12 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
     ok = filled == grid.size and np.all(np.isfinite(states))
     if not ok:
         others = "" if label == "reference" else " or method 'reference'"
+        advice = (f"use smaller rtol and atol{others}" if "spacing between numbers" not in
+                  message else "the motion there needs steps below the time's resolution "
+                  "(check it up to that time: a body falling through the ground or a unit "
+                  "beyond its range), or use larger rtol and atol")
         message = (f"{label} (rtol {rtol:g}, atol {atol:g}) failed at t = {solver.t:.6g} s: "
-                   f"{message or 'stopped early'}; use smaller rtol and atol{others}")
+                   f"{(message or 'stopped early').rstrip('.')}; {advice}")
     cost = RunCost(steps, calls[0], calls[0], wall,
                    jacobians=int(getattr(solver, "njev", 0) or 0),
                    lu_decompositions=int(getattr(solver, "nlu", 0) or 0))
