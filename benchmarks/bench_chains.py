@@ -2,6 +2,7 @@
 number of segments.
 
 Run:  python benchmarks/bench_chains.py [--repeats 15] [--rounds 3] [--against COMMIT]
+                                       [--write-docs]
 
 1. **The elbow is unchanged and no slower.** The elbow-only implementation (torquesim 0.1,
    git commit ``FROZEN_COMMIT``) is extracted from the repository's history into a temporary
@@ -16,6 +17,9 @@ Run:  python benchmarks/bench_chains.py [--repeats 15] [--rounds 3] [--against C
    joint, constant activations, 1 s at 0.1 ms, monolithic RK4) in this process; ns per step
    and the ratio to the elbow preset, timed alternately with it (median of paired ratios).
    Targets: 2 segments ≤ 2.5×, 6 segments ≤ 8× the elbow's per-step cost.
+
+``--write-docs`` (against the frozen code, with the chains) writes the figures into the
+``chains-benchmark`` block of README.md.
 """
 
 from __future__ import annotations
@@ -31,7 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "scripts"))
+from docblocks import measured_on, write_blocks  # noqa: E402  (scripts/)
+
 FROZEN_COMMIT = "d52e451"
+#: The per-step targets: chain length (segments) → at most this many times the elbow's cost.
+CHAIN_TARGETS = {2: 2.5, 6: 8.0}
 ROOT = Path(__file__).resolve().parent.parent
 METHODS = {  # name: (method, step s, coupling keyword arguments)
     "monolithic 0.1 ms": ("monolithic", 1e-4, None),
@@ -64,7 +73,9 @@ def run_timer(src: Path, cache: Path, repeats: int, save: Path) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def frozen_against_current(repeats: int, rounds: int, commit: str = FROZEN_COMMIT) -> None:
+def frozen_against_current(repeats: int, rounds: int, commit: str = FROZEN_COMMIT) -> dict:
+    """Time the elbow with this tree and with ``commit``'s (module docstring, part 1); print
+    and return {method: (median ratio current/frozen, per-round ratios)} and "max_diff"."""
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         frozen = tmp / "frozen"
@@ -95,6 +106,13 @@ def frozen_against_current(repeats: int, rounds: int, commit: str = FROZEN_COMMI
         limit = 1.2 if commit == FROZEN_COMMIT else 1.05
         print(f"target monolithic within {limit:g}× of {commit}: {mono:.2f}× -> "
               f"{'met' if mono <= limit else 'NOT met'}")
+        figures = {name: (float(np.median([x[name] / y[name] for x, y in
+                                          zip(results["current"], results["frozen"],
+                                              strict=True)])),
+                          [x[name] / y[name] for x, y in
+                           zip(results["current"], results["frozen"], strict=True)])
+                   for name in METHODS}
+        return {**figures, "max_diff": worst}
 
 
 def test_chain(n: int):
@@ -115,10 +133,11 @@ def test_chain(n: int):
                          duration=1.0)
 
 
-def cost_per_segment_count(repeats: int) -> None:
+def cost_per_segment_count(repeats: int) -> dict[int, float]:
     """Per-step cost of chains of 1–6 segments against the elbow preset. The elbow and the
-    chain are timed alternately, run by run, and the median of the paired ratios is printed,
-    so a change of machine load between the two does not enter the ratio."""
+    chain are timed alternately, run by run, and the median of the paired ratios is printed
+    (and returned, by segment count), so a change of machine load between the two does not
+    enter the ratio."""
     import torquesim as ts
 
     def per_step(model) -> float:
@@ -127,21 +146,23 @@ def cost_per_segment_count(repeats: int) -> None:
 
     elbow = ts.load_model("builtin:elbow-curl")
     per_step(elbow)
-    targets = {2: 2.5, 6: 8.0}
+    ratios = {}
     for n in range(1, 7):
         chain = test_chain(n)
         per_step(chain)
         pairs = [(per_step(elbow), per_step(chain)) for _ in range(repeats)]
         ratio = float(np.median([c / e for e, c in pairs]))
+        ratios[n] = ratio
         cost = float(np.median([c for _, c in pairs]))
         elbow_cost = float(np.median([e for e, _ in pairs]))
         verdict = ""
-        if n in targets:
-            verdict = (f" (target ≤ {targets[n]:g}× -> "
-                       f"{'met' if ratio <= targets[n] else 'NOT met'})")
+        if n in CHAIN_TARGETS:
+            verdict = (f" (target ≤ {CHAIN_TARGETS[n]:g}× -> "
+                       f"{'met' if ratio <= CHAIN_TARGETS[n] else 'NOT met'})")
         print(f"{n} segment{'s' if n > 1 else ' '}, {2 * n:2d} units: {cost * 1e9:7.0f} ns per "
               f"step (elbow {elbow_cost * 1e9:5.0f} ns alongside), {ratio:5.2f}× the elbow"
               f"{verdict}")
+    return ratios
 
 
 def main() -> None:
@@ -152,14 +173,36 @@ def main() -> None:
                         help="commit to compare the elbow with (default: the frozen 0.1 code)")
     parser.add_argument("--skip-chains", action="store_true",
                         help="only the comparison with the other commit")
+    parser.add_argument("--write-docs", action="store_true",
+                        help="write the figures into README.md's chains-benchmark block "
+                             "(against the frozen code, with the chains)")
     args = parser.parse_args()
+    if args.write_docs and (args.skip_chains or args.against != FROZEN_COMMIT):
+        parser.error("--write-docs measures against the frozen code, with the chains")
     start = time.perf_counter()
-    print(f"load average at start: {os.getloadavg()[0]:.2f} (2 cores)")
-    frozen_against_current(args.repeats, args.rounds, args.against)
+    load = os.getloadavg()[0]
+    print(f"load average at start: {load:.2f} (2 cores)")
+    elbow = frozen_against_current(args.repeats, args.rounds, args.against)
     if not args.skip_chains:
-        cost_per_segment_count(args.repeats)
+        chains = cost_per_segment_count(args.repeats)
     print(f"load average at end: {os.getloadavg()[0]:.2f}; "
           f"benchmark took {time.perf_counter() - start:.0f} s")
+    if args.write_docs:
+        mono, rounds = elbow["monolithic 0.1 ms"]
+        verdict = {n: "met" if chains[n] <= t else "not met" for n, t in CHAIN_TARGETS.items()}
+        block = (
+            f"Measured by `python benchmarks/bench_chains.py --write-docs` ({measured_on(load)}, "
+            f"{args.rounds} rounds): monolithic at 0.1 ms **{mono:.2f}×** the frozen code's "
+            f"time (target ≤ 1.2×: {'met' if mono <= 1.2 else 'not met'}; rounds "
+            + ", ".join(f"{r:.2f}×" for r in rounds)
+            + f"), partitioned {elbow['partitioned 0.1 ms'][0]:.2f}×, IMEX at 5 ms "
+            f"{elbow['imex 5 ms'][0]:.2f}×; trajectories identical to "
+            f"{elbow['max_diff']:.2g} (max difference). Cost per RK4 step against chain "
+            f"length, each chain timed alternately with the elbow (median of paired ratios): "
+            f"2 segments **{chains[2]:.2f}×** the elbow's (target ≤ {CHAIN_TARGETS[2]:g}×: "
+            f"{verdict[2]}), 6 segments **{chains[6]:.2f}×** (target ≤ {CHAIN_TARGETS[6]:g}×: "
+            f"{verdict[6]}; 6 segments carry 6× the elbow's units).\n")
+        write_blocks("README.md", {"chains-benchmark": block})
 
 
 if __name__ == "__main__":

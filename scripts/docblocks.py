@@ -32,7 +32,7 @@ PAGES = {
                         "motion-squat-jump", "motion-countermovement-jump",
                         "motion-squat-jump-biarticular", "motion-drop-landing"},
     "docs/model.md": {"contacts-squat-jump"},
-    "README.md": {"test-suite"},
+    "README.md": {"test-suite", "chains-benchmark", "simulate-benchmark"},
     "docs/index.md": {"test-suite"},
 }
 #: The presets whose motion `preset_motion_blocks` describes, in page order.
