@@ -482,3 +482,20 @@ def test_a_body_that_passes_through_the_ground_is_warned_about():
         assert when == pytest.approx(first, abs=1e-3) and 0.9 < when < 1.5
         assert lowest[run.time < first].min() > -0.05
     assert "ground" not in ts.simulate(jump, "imex-ros2-adaptive", tolerance=None).message
+
+
+def test_a_long_step_search_says_each_step_it_tries(capsys, monkeypatch):
+    """simulate's search for a step a run verifies (after a run that fails or breaks the
+    stability limit) says each step it tries once it has run a while (here at once), down
+    to the step it advises; the error stays the last line."""
+    import torquesim.cli as cli
+
+    monkeypatch.setattr(cli, "SEARCH_REPORT_AFTER", 0.0)
+    code = main(["simulate", "--model", "builtin:drop-landing", "--method", "imex-ros2",
+                 "--step", "10ms"])
+    err = [line for line in capsys.readouterr().err.splitlines()
+           if not line.startswith(("compiling ", "still compiling"))]
+    tried = [float(line.split("trying ")[1].split(" ms")[0]) for line in err[:-1]]
+    assert code == 1 and err[-1].startswith("error: ") and "step ≤ 0.3125 ms" in err[-1]
+    assert all(line.startswith("note: the run at 10 ms failed") for line in err[:-1])
+    assert tried[-1] == 0.3125 and tried == [10 / 2**k for k in range(2, len(tried) + 2)]

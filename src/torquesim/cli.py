@@ -216,7 +216,8 @@ def simulate(model_path, method, step, output_step, duration, out_path, plot_pat
     _announce_size(model, method, step or output_step, duration, out_path)
     compiling_for(f"the {method} technique for {model_kind(model)}")
     result = run(model, method, step, duration=duration, atol=atol, output_step=output_step,
-                 tolerance=check if fixed or controlled else None)
+                 tolerance=check if fixed or controlled else None,
+                 progress=_after_a_while(SEARCH_REPORT_AFTER))
     if result.settings.get("step_note"):
         click.echo(f"note: {result.settings['step_note']}", err=True)
     if result.message:
@@ -292,6 +293,26 @@ def simulate(model_path, method, step, output_step, duration, out_path, plot_pat
 #: before it starts (with how to make it smaller).
 LARGE_RUN_STEPS = 2_000_000
 LARGE_TABLE_BYTES = 200e6
+
+
+#: simulate's search for a step a run verifies says each step it tries once it has run this
+#: long (s); a short search stays silent.
+SEARCH_REPORT_AFTER = 2.0
+
+
+def _after_a_while(seconds: float):
+    """A ``progress(text)`` that writes ``note: text`` to stderr once ``seconds`` have passed
+    since its first call (the first call only starts the clock)."""
+    import time
+
+    start = []
+
+    def say(text: str) -> None:
+        if not start:
+            start.append(time.monotonic())
+        elif time.monotonic() - start[0] >= seconds:
+            click.echo(f"note: {text}", err=True)
+    return say
 
 
 #: While a command compiles, a line at least this often (s), so that a log is never silent

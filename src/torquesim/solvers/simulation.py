@@ -78,6 +78,7 @@ def simulate(
     check: bool = True,
     advise: bool = True,
     tolerance: float | None = DEFAULT_TOLERANCE,
+    progress=None,
 ) -> SimulationResult:
     """Simulate ``model`` (default: the built-in curl) with one solution technique.
 
@@ -128,6 +129,10 @@ def simulate(
         and warn (``result.message``) when it exceeds ``tolerance`` (rad). Default 0.5°; None
         turns the check off. The estimate is
         in ``result.settings["estimated_error_rad"]``.
+    progress : callable, optional
+        ``progress(text)`` hears, in one line each, the steps tried when a fixed-step run
+        failed or broke the stability limit and the search for a step a run verifies runs
+        (up to 16 more runs at ever smaller steps: seconds on a stiff model).
     """
     model = as_chain(default_model() if model is None else model)
     if not isinstance(method, str):
@@ -151,11 +156,12 @@ def simulate(
         if tolerance is not None:
             check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
         if step is None:
-            result = default_step_run(model, packed, y0, method, coupling)
+            result = default_step_run(model, packed, y0, method, coupling, progress)
         else:
             result = _fixed_step(model, packed, y0, method, step, coupling)
             if advise and (not result.success or result.stability.exceeded):
-                safe = verified_run(model, packed, y0, method, step, coupling)
+                safe = verified_run(model, packed, y0, method, step, coupling,
+                                    _search_progress(progress, result))
                 result = _with_advice(result, None if safe is None else safe.step)
         if tolerance is not None and result.success:
             result = _with_error_estimate(result, model, packed, y0, method, coupling,
@@ -359,17 +365,32 @@ def _max_difference(coarse, fine) -> float:
     return float(np.max(np.abs(coarse.q[:n] - fine.q[::k][:n])))
 
 
-def verified_run(model, packed, y0, method, step, coupling) -> SimulationResult | None:
+def _search_progress(progress, result: SimulationResult):
+    """``progress`` (`simulate`'s, or None) as `verified_run`'s: each trial step in a line
+    that says why the search runs (``result``, the run that failed or broke the limit)."""
+    if progress is None:
+        return None
+    report = result.stability
+    what = "failed" if not result.success else "broke the stability limit in " + (
+        report.unit if report.in_contact else f"the {report.unit} unit")
+    return lambda h: progress(f"the run at {result.step * 1e3:.4g} ms {what}; searching for "
+                              f"the largest step a run verifies: trying {h * 1e3:.4g} ms")
+
+
+def verified_run(model, packed, y0, method, step, coupling,
+                 progress=None) -> SimulationResult | None:
     """The run at the step to recommend after a fixed-step run at ``step`` failed or broke the
     stability limit, found by running: the largest of step/2, step/4, … (made to divide the
     duration) whose run succeeds within the stability limit and agrees with a run at half
     that step to `ADVICE_AGREEMENT` rad. None if no step down to step/2^8 (and no run of at
-    most `ADVICE_MAX_STEPS` steps) does."""
+    most `ADVICE_MAX_STEPS` steps) does. ``progress(h)`` hears of each step tried."""
     h = step
     for _ in range(ADVICE_HALVINGS):
         h = divisor_step(model.duration, h / 2)
         if 2 * model.duration / h > ADVICE_MAX_STEPS:  # the run at half of it included
             return None
+        if progress is not None:
+            progress(h)
         trial = _fixed_step(model, packed, y0, method, h, coupling)
         if not trial.success or trial.stability.exceeded:
             continue
@@ -389,17 +410,19 @@ def default_fixed_step(duration: float) -> float:
     return divisor_step(duration, DEFAULT_STEP)
 
 
-def default_step_run(model, packed, y0, method, coupling) -> SimulationResult:
+def default_step_run(model, packed, y0, method, coupling, progress=None) -> SimulationResult:
     """A fixed-step run at the step chosen from the model: `default_fixed_step`; where that
     run fails or breaks the stability limit of the technique's explicit part (the muscle
     part of monolithic and partitioned RK4 on stiff units, the contacts of every technique),
     the run `verified_run` finds, with a note saying so in ``settings["step_note"]``. (Where
-    none is found, the run at the first step, whose message then says what to change.)"""
+    none is found, the run at the first step, whose message then says what to change.)
+    ``progress`` as `simulate`'s."""
     step = default_fixed_step(model.duration)
     result = _fixed_step(model, packed, y0, method, step, coupling)
     if result.success and not result.stability.exceeded:
         return result
-    chosen = verified_run(model, packed, y0, method, step, coupling)
+    chosen = verified_run(model, packed, y0, method, step, coupling,
+                          _search_progress(progress, result))
     if chosen is None:
         return _with_advice(result, None)
     report = result.stability
