@@ -134,7 +134,7 @@ ERROR_CONTROLLED_METHODS = tuple(t.method for t in TECHNIQUES if t.error_control
 #: The angle tolerances (atol, rad) an error-controlled technique is tried at (the study's
 #: ladder and `choice`'s), spaced as the steps (1, 2, 5 per decade): its global error follows
 #: atol, and a decade of it costs √10 in steps (order 2).
-CONTROLLED_TOLERANCES = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6)
+CONTROLLED_TOLERANCES = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6)
 #: Every ``method`` name `simulate` accepts besides ``scipy:NAME``.
 METHODS = (*FIXED_STEP_METHODS, *ERROR_CONTROLLED_METHODS, "reference")
 #: The methods a fit, an optimisation or a sweep may use (fixed step: the population runs in
