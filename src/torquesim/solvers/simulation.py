@@ -197,21 +197,25 @@ def simulate(
     return result
 
 
-#: A joint or a segment's centre of mass this far below the ground (y = 0) has passed through
-#: it, m: only the contact points meet the ground (the contacts let the body sink millimetres,
-#: a model file at most 5 cm standing).
+#: A joint or a segment's centre of mass this far below the ground (y = 0), and below the
+#: deepest contact point, has passed through it, m: only the contact points meet the ground
+#: (they sink millimetres; a joint at a contact point sinks with it).
 THROUGH_GROUND = 0.05
 
 
 def _with_ground_check(result: SimulationResult, model: ChainModel) -> SimulationResult:
     """``result`` with a warning (``result.message``) when a joint or a segment's centre of mass
-    goes more than `THROUGH_GROUND` below the ground: only the contact points meet it, so
-    the body passes through the ground and the motion from there on is not physical (the
-    squat jump run for 3 s lands, falls and ends with its centre of mass 1 m underground)."""
+    goes more than `THROUGH_GROUND` below the ground and below the deepest contact point:
+    only the contact points meet the ground, so the body passes through it and the motion
+    from there on is not physical (the squat jump run for 3 s lands, falls and ends with its
+    centre of mass 1 m underground)."""
     states = result.states if result.success else result.states[:-1]  # (not the failure)
     where = model.kinematics(states[:, :model.n_base + model.n_joints])
     heights = np.concatenate([where["joints"][..., 1], where["centres"][..., 1]], axis=1)
-    below = np.flatnonzero(heights.min(axis=1) < -THROUGH_GROUND)
+    index = {p.name: i for i, p in enumerate(model.points)}
+    contacts = where["points"][:, [index[c.point] for c in model.contacts], 1]
+    floor = np.minimum(contacts.min(axis=1), 0.0) - THROUGH_GROUND
+    below = np.flatnonzero(np.any(heights < floor[:, None], axis=1))
     if below.size == 0:
         return result
     row = int(below[0])
