@@ -159,3 +159,34 @@ def test_forces_need_a_body_on_the_ground(tmp_path):
     target = Target(np.arange(0, 1, 0.01), np.zeros((1, 100)), ("elbow",), "t")
     with pytest.raises(ts.ModelError, match="does not stand on the ground"):
         with_forces(ts.load_model("builtin:elbow-curl"), target, tmp_path / "x.mot", 50.0)
+
+
+def test_torquesim_s_own_ground_force_file_reads_back_once(tmp_path):
+    """`simulate --grf` writes the total beside each contact's part; read back as --forces it
+    is the run's ground force once (summing every plate counted it twice: 2 body weights
+    standing), and a file whose plates are three real ones is still summed."""
+    from torquesim.io.tables import save_ground_reactions
+
+    jump = ts.load_model("builtin:squat-jump")
+    run = ts.simulate(jump, "imex", 2.5e-4, duration=0.3, tolerance=None)
+    totals = read_plates(save_ground_reactions(run, tmp_path / "grf.mot"))
+    c = run.columns()
+    assert totals.plates == ("",) and "toe_, heel_" in totals.note
+    assert totals.force_y == pytest.approx(c["grf_y"], abs=1e-6)
+    assert totals.force_x == pytest.approx(c["grf_x"], abs=1e-6)
+    time = np.arange(0.0, 1.0, 0.001)
+    fx, fy = _jump_force(time)
+    three = tmp_path / "three.mot"
+    _write_plates(three, time, fx, fy, 0.5)
+    lines = three.read_text().splitlines()
+    head = lines.index("endheader") + 1
+    names = lines[head].split("\t")
+    rows = [r.split("\t") for r in lines[head + 1:]]
+    extra = [n.replace("1_", "2_") for n in names if n.startswith("1_")]
+    out = lines[:head] + ["\t".join(names + extra)] + [
+        "\t".join(r + [r[names.index(n.replace("2_", "1_"))] for n in extra]) for r in rows]
+    three.write_text("\n".join(out).replace(f"nColumns={len(names)}",
+                                            f"nColumns={len(names) + len(extra)}") + "\n")
+    summed = read_plates(three)
+    assert summed.plates == ("", "1_", "2_") and summed.note == ""
+    assert summed.force_y == pytest.approx(1.5 * fy, abs=1e-5)

@@ -82,6 +82,13 @@ def read_plates(path, field: str = "--forces", axes: str = "x,z") -> PlateTotals
                                      field=field)
     typical = sampling_interval(time, lambda message: ModelError(field,
                                                                 f"{path.name}: {message}"))
+    note = ""
+    total = _total_plate(plates, columns)
+    if total is not None:  # a total beside its parts (torquesim's own --grf file): not summed
+        parts = [p for p in plates if p != total]
+        note = (f"its {total or 'unprefixed '}ground_force columns are the sum of the others' "
+                f"({', '.join(parts)}): read alone")
+        plates = {total: plates[total]}
     fx = sum(columns[c["vx"]] for c in plates.values())
     fy = sum(columns[c["vy"]] for c in plates.values())
     moment = np.zeros_like(time)
@@ -90,7 +97,24 @@ def read_plates(path, field: str = "--forces", axes: str = "x,z") -> PlateTotals
             moment += columns[c["vy"]] * columns[c["px"]]
     with np.errstate(invalid="ignore", divide="ignore"):
         cop = np.where(fy > 20.0, moment / np.where(fy > 20.0, fy, 1.0), np.nan)
-    return PlateTotals(path.name, time, fx, fy, cop, 1.0 / typical, tuple(plates))
+    return PlateTotals(path.name, time, fx, fy, cop, 1.0 / typical, tuple(plates), note)
+
+
+def _total_plate(plates: dict[str, dict[str, str]], columns) -> str | None:
+    """The prefix of a plate whose horizontal and vertical forces are, at every row, the sum
+    of all the other plates' (to 1e-6 of the largest force): a total written beside its parts,
+    as torquesim's ``simulate --grf`` writes the contacts' (summing all would count every
+    force twice). None if there is none, and with fewer than three plates (two plates that
+    read alike are two plates, not a total and its only part)."""
+    if len(plates) < 3:
+        return None
+    scale = max(float(np.max(np.abs(columns[c["vy"]]))) for c in plates.values())
+    for prefix, own in plates.items():
+        others = [c for p, c in plates.items() if p != prefix]
+        if all(np.allclose(columns[own[k]], sum(columns[c[k]] for c in others), rtol=0.0,
+                           atol=1e-6 * scale + 1e-9) for k in ("vx", "vy")):
+            return prefix
+    return None
 
 
 #: Length units a C3D file may give its positions in, in metres.
