@@ -101,18 +101,15 @@ def frozen_against_current(repeats: int, rounds: int, commit: str = FROZEN_COMMI
         old, new = np.load(tmp / "frozen.npz"), np.load(tmp / "current.npz")
         worst = max(float(np.max(np.abs(old[n] - new[n]))) for n in METHODS)
         print(f"max |y_current − y_frozen| over these runs: {worst:.3g} (target ≤ 1e-12)")
-        mono = np.median([x["monolithic 0.1 ms"] / y["monolithic 0.1 ms"]
-                          for x, y in zip(results["current"], results["frozen"], strict=True)])
+        rounds = {name: [x[name] / y[name] for x, y in
+                         zip(results["current"], results["frozen"], strict=True)]
+                  for name in METHODS}
+        mono = float(np.median(rounds["monolithic 0.1 ms"]))
         limit = 1.2 if commit == FROZEN_COMMIT else 1.05
         print(f"target monolithic within {limit:g}× of {commit}: {mono:.2f}× -> "
               f"{'met' if mono <= limit else 'NOT met'}")
-        figures = {name: (float(np.median([x[name] / y[name] for x, y in
-                                          zip(results["current"], results["frozen"],
-                                              strict=True)])),
-                          [x[name] / y[name] for x, y in
-                           zip(results["current"], results["frozen"], strict=True)])
-                   for name in METHODS}
-        return {**figures, "max_diff": worst}
+        return {**{name: (float(np.median(r)), r) for name, r in rounds.items()},
+                "max_diff": worst}
 
 
 def test_chain(n: int):

@@ -140,15 +140,29 @@ def reference_figure() -> dict[str, float]:
     return worst
 
 
+def momentum_series(run) -> tuple[np.ndarray, np.ndarray]:
+    """A run's impulse ∫(F_y − m·g) dt from its start (the trapezoid on its output grid, as
+    tests/test_ground.py) and its change of momentum m·(v_y − v_y,0), N·s, at every row."""
+    c = run.columns()
+    mass = sum(s.total_mass for s in run.model.segments)
+    net = c["grf_y"] - mass * G
+    impulse = np.concatenate([[0.0], np.cumsum(0.5 * (net[1:] + net[:-1]) * np.diff(run.time))])
+    return impulse, mass * (c["com_speed_y"] - c["com_speed_y"][0])
+
+
+def momentum_books(run) -> tuple[float, float]:
+    """The largest |∫(F_y − m·g) dt − m·Δv_y| over a run and the largest change of momentum,
+    N·s (`momentum_series`)."""
+    impulse, change = momentum_series(run)
+    return float(np.max(np.abs(impulse - change))), float(np.abs(change).max())
+
+
 def jump_figure() -> tuple[float, float, float]:
     """The squat jump's momentum books and flight: the largest |impulse − m·Δv_y| (N·s), the
     largest change of momentum (N·s) and the largest |a_com + g| in flight (m/s²)."""
     run = ts.simulate(ts.load_model("builtin:squat-jump"), "monolithic", 1.25e-5)
     c = run.columns()
-    mass = sum(s.total_mass for s in run.model.segments)
-    net = c["grf_y"] - mass * G
-    impulse = np.concatenate([[0.0], np.cumsum(0.5 * (net[1:] + net[:-1]) * run.step)])
-    change = mass * (c["com_speed_y"] - c["com_speed_y"][0])
+    impulse, change = momentum_series(run)
     air = np.flatnonzero(c["grf_y"] == 0.0)
     flight = slice(air[0] + 1, air[-1])
     accel = np.diff(c["com_speed_y"])[flight] / run.step
@@ -182,17 +196,6 @@ BOOK_RUNS = (("monolithic", 1.25e-5, None), ("imex", 2.5e-4, None), ("imex", 1e-
 #: The reference's output grid for the table (divides every fixed step of `BOOK_RUNS`), and
 #: the error-controlled runs' output grid (the tests' 0.1 ms).
 BOOK_REFERENCE_GRID, BOOK_OUTPUT_GRID = 1.25e-5, 1e-4
-
-
-def momentum_books(run) -> tuple[float, float]:
-    """The largest |∫(F_y − m·g) dt − m·Δv_y| over a run (N·s; the trapezoid on its output
-    grid, as tests/test_ground.py) and the largest change of momentum (N·s)."""
-    c = run.columns()
-    mass = sum(s.total_mass for s in run.model.segments)
-    net = c["grf_y"] - mass * G
-    impulse = np.concatenate([[0.0], np.cumsum(0.5 * (net[1:] + net[:-1]) * np.diff(run.time))])
-    change = mass * (c["com_speed_y"] - c["com_speed_y"][0])
-    return float(np.max(np.abs(impulse - change))), float(np.abs(change).max())
 
 
 def jump_books() -> list[tuple[str, str, float, float, float]]:
