@@ -17,6 +17,7 @@ from .solvers.techniques import (
     ERROR_CONTROLLED_METHODS,
     FIT_METHODS,
     FIXED_STEP_METHODS,
+    GROUND_CONTROL_ATOL,
     METHODS,
     MIN_CONTROL_ATOL,
     TECHNIQUES,
@@ -171,7 +172,9 @@ def cli(context):
                    "contact point).")
 @click.option("--atol", type=float, default=None,
               help="imex-ros2-adaptive: the angle tolerance of each step, rad (speeds "
-                   f"{VELOCITY_SCALE:g}x it per second). Default {ERROR_CONTROL_ATOL:g}. "
+                   f"{VELOCITY_SCALE:g}x it per second). Default {ERROR_CONTROL_ATOL:g}; "
+                   f"{GROUND_CONTROL_ATOL:g} on a body with ground contacts (its ground "
+                   "force's impulse then meets its momentum change within 1e-6). "
                    f"Bounds [{MIN_CONTROL_ATOL:g}, 1].")
 @click.option("--tolerance", type=float, default=0.5, show_default=True,
               help="Fixed-step methods: estimate the max angle error against a run at twice "

@@ -23,6 +23,7 @@ from .techniques import (
     ERROR_CONTROL_ATOL,
     ERROR_CONTROLLED_METHODS,
     FIXED_STEP_METHODS,
+    GROUND_CONTROL_ATOL,
     METHODS,
     MIN_CONTROL_ATOL,
     SCIPY_METHODS,
@@ -87,10 +88,14 @@ def simulate(
     model : ChainModel or ElbowModel, optional
         Any planar chain (`torquesim.load_model` of a file or ``"builtin:NAME"``); an
         ElbowModel is simulated as its one-segment chain.
-    method : {"monolithic", "partitioned", "imex", "reference"} or "scipy:NAME"
-        ``monolithic``: classical RK4 on the whole state. ``partitioned``: each part with its
-        own RK4, exchanging at step boundaries as ``coupling`` says (default zero-order hold).
-        ``imex``: the body on explicit RK4, each unit's CE equation on implicit SDIRK2.
+    method : str
+        One of `METHODS` or "scipy:NAME". ``monolithic``: classical RK4 on the whole state.
+        ``partitioned``: each part with its own RK4, exchanging at step boundaries as
+        ``coupling`` says (default zero-order hold). ``imex``: the body on explicit RK4, each
+        unit's CE equation on implicit SDIRK2. ``imex-ros2``: the body on ROS2, linearly
+        implicit in the end stops and contacts. ``imex-ros2-adaptive``: imex-ros2 at steps an
+        error estimate chooses, at the angle tolerance ``atol`` (rad; default 1e-4,
+        `ERROR_CONTROL_ATOL`; on a body with ground contacts 5e-8, `GROUND_CONTROL_ATOL`).
         ``reference``: SciPy Radau at ``rtol`` (default 1e-10, `REFERENCE_RTOL`) and ``atol``
         (default 1e-12; on a body with ground contacts 1e-10, `GROUND_REFERENCE_ATOL`).
         ``scipy:RK45`` etc.: that SciPy solver on the whole system, at ``rtol`` and ``atol``
@@ -167,7 +172,8 @@ def simulate(
             result = _with_error_estimate(result, model, packed, y0, method, coupling,
                                           tolerance)
     elif method in ERROR_CONTROLLED_METHODS:
-        atol = ERROR_CONTROL_ATOL if atol is None else atol
+        if atol is None:
+            atol = GROUND_CONTROL_ATOL if model.contacts else ERROR_CONTROL_ATOL
         rtol = 0.0 if rtol is None else rtol
         check_range("atol", atol, MIN_CONTROL_ATOL, 1.0, unit="rad")
         check_range("rtol", rtol, 0.0, 1.0)
