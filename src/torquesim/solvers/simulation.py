@@ -94,7 +94,7 @@ def simulate(
         ``coupling`` says (default zero-order hold). ``imex``: the body on explicit RK4, each
         unit's CE equation on implicit SDIRK2. ``imex-ros2``: the body on ROS2, linearly
         implicit in the end stops and contacts. ``imex-ros2-adaptive``: imex-ros2 at steps an
-        error estimate chooses, at the angle tolerance ``atol`` (rad; default 1e-4,
+        error estimate chooses, at the angle tolerance ``atol`` (rad; default 1e-5,
         `ERROR_CONTROL_ATOL`; on a body with ground contacts 5e-8, `GROUND_CONTROL_ATOL`).
         ``reference``: SciPy Radau at ``rtol`` (default 1e-10, `REFERENCE_RTOL`) and ``atol``
         (default 1e-12; on a body with ground contacts 1e-10, `GROUND_REFERENCE_ATOL`).
