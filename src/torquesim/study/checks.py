@@ -38,19 +38,22 @@ def check_techniques() -> list[tuple[str, str, Coupling | None]]:
     return out
 
 
-def check_study(model, steps=CHECK_STEPS, progress=None, advise: bool = True) -> list[dict]:
+def check_study(model, steps=CHECK_STEPS, progress=None, advise: bool = True,
+                techniques=None, reference=None) -> list[dict]:
     """One row per (technique, step): the true max angle error (rad), whether the run
     warned or was refused, the estimate, and the verdict (``caught``, ``missed``,
     ``false alarm``, ``quiet`` or ``warned`` for runs between the two thresholds).
+    ``techniques``: (name, method, coupling) triples, default `check_techniques`;
+    ``reference``: the run to measure against (on a 1 ms grid), default the study's.
 
     ``advise=False`` skips `simulate`'s search for a step to recommend. That search runs
     only on a run that already failed or broke the stability limit, which warns (or is
     refused) either way, so no verdict changes; it only saves time (a few seconds per
     unstable run)."""
     model = as_chain(model)
-    reference = reference_solution(model)
+    reference = reference_solution(model) if reference is None else reference
     rows = []
-    jobs = [(t, h) for t in check_techniques() for h in steps]
+    jobs = [(t, h) for t in (techniques or check_techniques()) for h in steps]
     for i, ((name, method, coupling), h) in enumerate(jobs):
         try:
             run = simulate(model, method, h, coupling=coupling, advise=advise)
