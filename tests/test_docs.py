@@ -111,6 +111,20 @@ def test_the_study_page_holds_its_generated_blocks():
     assert "python scripts/make_docs.py --check" in (ROOT / ".ci" / "run").read_text()
 
 
+def test_the_study_page_states_the_ladders_the_study_runs():
+    """docs/study.md's list of what the study tries: the fixed steps and the error-controlled
+    technique's tolerances as `study.compare` and the registry have them (it said 5e-6 after
+    the ladder went to 1e-6)."""
+    from torquesim.solvers.techniques import CONTROLLED_TOLERANCES
+    from torquesim.study.compare import DEFAULT_STEPS
+
+    page = (ROOT / "docs" / "study.md").read_text()
+    tolerances = f"atol {CONTROLLED_TOLERANCES[0]:.0e} … {CONTROLLED_TOLERANCES[-1]:.0e} rad"
+    assert tolerances.replace("e-0", "e-") in page
+    steps = ", ".join(f"{h * 1e3:g}" for h in DEFAULT_STEPS[:-1])
+    assert f"Fixed steps: {steps} and {DEFAULT_STEPS[-1] * 1e3:g} ms." in page
+
+
 def test_the_stated_spread_of_the_optima_holds_what_it_says():
     """docs/data/optimise_spread.json: each case's range holds every kernel set's optimum and
     this machine's, and docs/optimise.md quotes it."""
