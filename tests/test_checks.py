@@ -6,6 +6,7 @@ import pytest
 import torquesim as ts
 from torquesim.solvers.techniques import default_coupling
 from torquesim.study.checks import CHECK_STEPS, RIGHT_RAD, WRONG_RAD, check_study, check_techniques
+from torquesim.study.compare import GRID
 
 
 def test_every_coupling_variant_is_in_the_grid():
@@ -45,7 +46,7 @@ def test_no_run_on_the_ground_more_than_a_tenth_of_a_radian_off_is_silent(preset
                    reverse=True)
     techniques = [(m, m, default_coupling(m) if m != "monolithic" else None)
                   for m in ("monolithic", "partitioned", "imex", "imex-ros2")]
-    reference = ts.simulate(model, "reference")  # within 1e-4° of the study's, for a 0.1 rad bar
+    reference = ts.simulate(model, "reference", output_step=GRID)  # within 1e-4° of the study's
     rows = check_study(model, steps, advise=False, techniques=techniques,
                        reference=reference)
     assert len(rows) == 4 * len(CHECK_STEPS)

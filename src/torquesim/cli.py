@@ -155,8 +155,9 @@ def cli(context):
 @click.option("--output-step", type=TIME, default=None,
               help="Output grid of the methods that choose their own steps (reference, "
                    "imex-ros2-adaptive; s, suffixes ms/us accepted): their state is written "
-                   "at its multiples. Must divide the duration. Default: 1 ms, else the "
-                   "largest step below it that divides the duration.")
+                   "at its multiples. Must divide the duration. Default: 1 ms (0.1 ms on a "
+                   "body with ground contacts), else the largest step below it that divides "
+                   "the duration.")
 @click.option("--duration", type=TIME, default=None, help="Override the model's duration (s).")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Write the trajectory: .csv or OpenSim .sto/.mot (rad, SI), with a "
@@ -470,7 +471,7 @@ def _announce_size(model, method, step, duration, out_path) -> None:
     span = model.duration if duration is None else check_range(
         "duration", duration, 0.0, 600.0, low_open=True, unit="s")
     if method not in FIXED_STEP_METHODS:  # the reference: its output grid
-        rows = round(span / (step or default_output_step(span))) + 1
+        rows = round(span / (step or default_output_step(span, bool(model.contacts)))) + 1
         steps = 0
     else:
         steps = step_count(span, step or default_fixed_step(span))

@@ -15,7 +15,7 @@ import math
 from ..model.chain import as_chain
 from ..solvers import Coupling, simulate
 from ..solvers.simulation import SimulationError
-from .compare import _errors, reference_solution
+from .compare import GRID, _errors, reference_solution
 
 CHECK_STEPS = (20e-3, 10e-3, 5e-3, 2e-3, 1e-3, 0.5e-3, 0.25e-3)
 #: A run this far off (max angle error, rad) is wrong: it must not be silent.
@@ -52,6 +52,8 @@ def check_study(model, steps=CHECK_STEPS, progress=None, advise: bool = True,
     unstable run)."""
     model = as_chain(model)
     reference = reference_solution(model) if reference is None else reference
+    if not math.isclose(reference.time[1], GRID):
+        raise ValueError(f"the reference's grid is {reference.time[1]} s; allowed: {GRID} s")
     rows = []
     jobs = [(t, h) for t in (techniques or check_techniques()) for h in steps]
     for i, ((name, method, coupling), h) in enumerate(jobs):
