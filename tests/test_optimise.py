@@ -325,6 +325,46 @@ def test_the_command_writes_an_optimised_model(tmp_path, capsys):
     assert "holds an earlier optimisation" in capsys.readouterr().err
 
 
+def test_a_stop_request_writes_the_best_so_far_and_resume_finishes(tmp_path, capsys,
+                                                                    monkeypatch):
+    """SIGTERM during the search (sent after its second generation, not timed): the
+    generation finishes, the best so far is written with a checkpoint, the command exits 130
+    and says how to continue, the previous handler is back; --resume finishes the search."""
+    import os
+    import signal
+
+    import torquesim.cli as cli
+
+    generations = []
+    real_step = cli.Progress.step
+
+    def step_then_signal(self, done, total, label):
+        real_step(self, done, total, label)
+        if label == "generations" and done > 0:
+            generations.append(done)
+            if len(generations) == 2:
+                os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(cli.Progress, "step", step_then_signal)
+    before = signal.getsignal(signal.SIGTERM)
+    out = tmp_path / "o"
+    args = ["optimise", "--minimise", "time_to:elbow=90deg", "--duration", "1.2",
+            "--generations", "6", "--out", str(out)]
+    assert main(args) == 130
+    err = capsys.readouterr().err
+    assert "stopping: finishing the current generation" in err
+    assert f"continue with --resume --out {out}" in err
+    assert signal.getsignal(signal.SIGTERM) is before
+    summary = json.loads((out / "optimise_summary.json").read_text())
+    assert ts.load_model(out / "optimised_model.toml").notes
+    assert (out / "optimise_checkpoint.npz").stat().st_size > 0
+    assert generations[-1] < 6
+    monkeypatch.setattr(cli.Progress, "step", real_step)
+    assert main([*args, "--resume", "--quiet"]) == 0
+    resumed = json.loads((out / "optimise_summary.json").read_text())
+    assert resumed["goals"][0]["optimum"] <= summary["goals"][0]["optimum"]
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--maximise", "jump_height"], "needs a body on the ground"),
     ([], "no goal given"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import re
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -932,6 +933,7 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
 
     import numpy as np
 
+    from .batch.engine import signals_handled
     from .fitting import (
         FitProblem,
         ParameterSpace,
@@ -1013,43 +1015,16 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
             raise ModelError("--resume", f"no checkpoint {str(checkpoint)!r}; allowed: the "
                              "--out directory of an earlier fit")
         state = load_checkpoint(checkpoint, problem, settings)
-    created = not out.exists()
-    stop = []
-
-    def request_stop(signum, _frame):
-        stop.append(signum)
-        click.echo("stopping: finishing the current simulations, then writing the best so "
-                   "far", err=True)
-
-    # The handlers stay until the outputs are written: an interrupt while they are written
-    # only sets the flag, so the model file, table, figure and summary always come from the
-    # same parameters (each file is replaced atomically).
-    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
-                                                                 signal.SIGTERM)}
-    try:
+    stop, request_stop = _stop_requests("the current simulations")
+    with _kept_clean(out), signals_handled(request_stop, signal.SIGINT, signal.SIGTERM):
         reporter = Progress(quiet)
         problem, outcome, summary, files = fit_and_write(
             problem, settings, out, resume=state, progress=reporter.say,
             tick=lambda stage, done, total: reporter.step(done, total, stage),
             should_stop=lambda: bool(stop))
         reporter.close()
-    except ModelError:
-        if created and out.is_dir() and not any(out.iterdir()):
-            out.rmdir()
-        raise
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
     click.echo("\n".join(summary_lines(summary)))
-    click.echo(f"wrote {out_dir}/: {', '.join(files)}, {CHECKPOINT_FILE}")
-    if stop and not outcome.interrupted:
-        click.echo("the fit had finished when the stop request came: its outputs are "
-                   "complete", err=True)
-    if outcome.interrupted:
-        click.echo(f"interrupted: best so far written; continue with --resume --out {out_dir}",
-                   err=True)
-        return 130
-    return 0
+    return _search_written(outcome, stop, out_dir, (*files, CHECKPOINT_FILE), "fit")
 
 
 @cli.command(short_help="Fit a unit's strength to dynamometer trials.")
@@ -1318,6 +1293,7 @@ def optimise(model_path, maximise, minimise, method, step, accuracy, duration, f
     _quiet_compiling(quiet)
     import signal
 
+    from .batch.engine import signals_handled
     from .io.model_file import load_model
     from .optimisation import (
         OptimiseProblem,
@@ -1372,13 +1348,7 @@ def optimise(model_path, maximise, minimise, method, step, accuracy, duration, f
     if resume and not checkpoint.is_file():
         raise ModelError("--resume", f"no checkpoint {str(checkpoint)!r}; allowed: the --out "
                          "directory of an earlier optimisation")
-    created = not out.exists()
-    stop = []
-
-    def request_stop(signum, _frame):
-        stop.append(signum)
-        click.echo("stopping: finishing the current generation, then writing the best so "
-                   "far", err=True)
+    stop, request_stop = _stop_requests("the current generation")
 
     from contextlib import nullcontext
 
@@ -1387,23 +1357,20 @@ def optimise(model_path, maximise, minimise, method, step, accuracy, duration, f
 
     engine = (connect(workers=workers, scheduler=scheduler)
               if workers is not None or scheduler is not None else nullcontext())
-    previous = {}
-    try:
-        with engine as client:
-            # The cluster's workers are forked before this process runs compiled parallel
-            # code (the problem simulates its start): forking after OpenMP is unsafe.
-            try:
-                problem = OptimiseProblem(model, goals, method, step, window, tuple(free),
-                                          freeze, limits, robust, timing_error, robust_mode,
-                                          constraints=constraints, endstop_depth=endstop_depth,
-                                          accuracy=_tolerance_rad(accuracy, "--accuracy"))
-            except ModelError as exc:
-                raise _as_option(exc, OPTIMISE_OPTIONS) from None
-            state = None
-            if resume:
-                state = load_checkpoint(checkpoint, problem, settings)
-            previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT,
-                                                                         signal.SIGTERM)}
+    with _kept_clean(out), engine as client:
+        # The cluster's workers are forked before this process runs compiled parallel code
+        # (the problem simulates its start): forking after OpenMP is unsafe.
+        try:
+            problem = OptimiseProblem(model, goals, method, step, window, tuple(free), freeze,
+                                      limits, robust, timing_error, robust_mode,
+                                      constraints=constraints, endstop_depth=endstop_depth,
+                                      accuracy=_tolerance_rad(accuracy, "--accuracy"))
+        except ModelError as exc:
+            raise _as_option(exc, OPTIMISE_OPTIONS) from None
+        state = None
+        if resume:
+            state = load_checkpoint(checkpoint, problem, settings)
+        with signals_handled(request_stop, signal.SIGINT, signal.SIGTERM):
             reporter = Progress(quiet)
             if problem.choice is not None:
                 reporter.say(problem.choice.describe())
@@ -1418,17 +1385,45 @@ def optimise(model_path, maximise, minimise, method, step, accuracy, duration, f
                 should_stop=lambda: bool(stop),
                 evaluate=scorer)
             reporter.close()
+    click.echo("\n".join(summary_lines(summary, problem)))
+    return _search_written(outcome, stop, out_dir, (*files, CHECKPOINT_FILE), "search")
+
+
+def _stop_requests(what: str):
+    """(stop, handler): a handler for SIGINT and SIGTERM that asks a search to stop, the
+    signals it heard appended to ``stop``: the search finishes ``what``, then writes the best
+    so far. Installed until the outputs are written, so that an interrupt while they are
+    written only sets the flag: the files always come from the same parameters (each is
+    replaced atomically)."""
+    stop = []
+
+    def request_stop(signum, _frame):
+        stop.append(signum)
+        click.echo(f"stopping: finishing {what}, then writing the best so far", err=True)
+
+    return stop, request_stop
+
+
+@contextmanager
+def _kept_clean(out: Path):
+    """The --out folder ``out`` removed again when a ModelError ends the command inside and
+    this command created it, empty."""
+    created = not out.exists()
+    try:
+        yield
     except ModelError:
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()
         raise
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-    click.echo("\n".join(summary_lines(summary, problem)))
-    click.echo(f"wrote {out_dir}/: {', '.join(files)}, {CHECKPOINT_FILE}")
+
+
+def _search_written(outcome, stop, out_dir: str, files, what: str) -> int:
+    """The last lines of a fit or an optimisation (``what``), which wrote ``files`` into
+    ``out_dir``, and its exit code: 130 when ``outcome`` was interrupted (its best so far
+    written), else 0."""
+    click.echo(f"wrote {out_dir}/: {', '.join(files)}")
     if stop and not outcome.interrupted:
-        click.echo("the search had finished when the stop request came: its outputs are "
+        click.echo(f"the {what} had finished when the stop request came: its outputs are "
                    "complete", err=True)
     if outcome.interrupted:
         click.echo(f"interrupted: best so far written; continue with --resume --out {out_dir}",
