@@ -261,9 +261,10 @@ def docs_block(load: float) -> str:
     lines = [f"Measured by `python benchmarks/bench_optimise.py --write-docs` "
              f"({measured_on(load)}; {numba.config.NUMBA_NUM_THREADS} Numba threads, "
              "compilation excluded). Goal values are the start and optimum re-simulated with "
-             "the reference solver (Radau). *Search*: CMA-ES and its simulations (the "
-             "command's `wall time` line); *whole call*: also the choice of technique, the "
-             "reference runs and the parameters' effects.", ""]
+             "the reference solver (Radau). Wall time: the search's, CMA-ES and its "
+             "simulations (the command's `wall time` line), and in brackets the whole "
+             "call's, also the choice of technique, the reference runs and the parameters' "
+             "effects.", ""]
     spread = RESULTS.get("spread", {})
 
     def across(case: str, scale: float, unit: str) -> str:
@@ -276,13 +277,13 @@ def docs_block(load: float) -> str:
     if "curl" in RESULTS:
         goal, sims, search, wall = RESULTS["curl"]
         lines += ["| optimisation | technique (chosen) | start | optimum | gain | simulations "
-                  "| search (warm) | whole call |", "|---|---|---|---|---|---|---|---|",
+                  "| wall (warm) |", "|---|---|---|---|---|---|---|",
                   f"| `builtin:elbow-curl`, minimise `time_to:elbow=90deg` | "
                   f"{_technique(goal['_method'], goal['_step'])} | "
                   f"{goal['reference_start'] * 1e3:.1f} ms | "
                   f"{goal['reference_optimum'] * 1e3:.1f} ms{across('curl', 1e3, 'ms')} | "
                   f"{goal['reference_gain_percent']:.1f} % faster | {sims} | "
-                  f"**{search:.2f} s** | {wall:.2f} s |"]
+                  f"**{search:.2f} s** ({wall:.2f} s) |"]
     if "jump" in RESULTS:
         rows, copies, copied_with = RESULTS["jump"]
         for label, (best, search, wall) in rows.items():
@@ -295,7 +296,7 @@ def docs_block(load: float) -> str:
                          f"{goal['reference_start'] * 100:.2f} cm | "
                          f"{goal['reference_optimum'] * 100:.2f} cm{spread_text} | "
                          f"+{goal['reference_gain_percent']:.1f} % | "
-                         f"{best.outcome.simulations} | {search:.1f} s | {wall:.1f} s |")
+                         f"{best.outcome.simulations} | {search:.1f} s ({wall:.1f} s) |")
         lines += ["", "Each jump under the same 10 copies with random onset errors in ±10 ms on "
                   f"every ramp ({copied_with}): the lowest jump among the copies that run, "
                   "and the copies that fail:", "",

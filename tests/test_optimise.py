@@ -325,6 +325,27 @@ def test_the_command_writes_an_optimised_model(tmp_path, capsys):
     assert "holds an earlier optimisation" in capsys.readouterr().err
 
 
+def test_searches_run_numpy_s_linear_algebra_on_one_thread():
+    """Inside a fit's or an optimisation's search, BLAS runs on one thread (its spinning
+    threads took a core from the population's), and as before after it."""
+    from threadpoolctl import threadpool_info
+
+    from torquesim.fitting.fit import run_fit
+    from torquesim.fitting.objective import blas_on_one_thread
+    from torquesim.optimisation.search import optimise_population
+
+    def blas_threads():
+        return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+    before = blas_threads()
+    if not before:
+        pytest.skip("NumPy's BLAS has no thread pool threadpoolctl knows")
+    assert blas_on_one_thread(blas_threads)() == [1] * len(before)
+    assert blas_threads() == before
+    for search in (run_fit, optimise_population):
+        assert search.__wrapped__.__name__ == search.__name__
+
+
 def test_a_stop_request_writes_the_best_so_far_and_resume_finishes(tmp_path, capsys,
                                                                     monkeypatch):
     """SIGTERM during the search (sent after its second generation, not timed): the

@@ -32,7 +32,7 @@ from ..errors import ModelError, check_range
 from ..io.checkpoint import read_checkpoint, save_checkpoint
 from ..io.fingerprint import fingerprint as hash_parts
 from .initial_guess import initial_guess
-from .objective import FAILED_SCORE
+from .objective import FAILED_SCORE, blas_on_one_thread
 from .problem import FitProblem
 
 CHECKPOINT_VERSION = 2
@@ -349,6 +349,7 @@ class _Stop(Exception):
     """Raised inside a least-squares residual evaluation to stop the search."""
 
 
+@blas_on_one_thread
 def run_fit(problem: FitProblem, settings: SearchSettings = SearchSettings(), *,
             checkpoint: str | Path | None = None, resume: dict | None = None,
             progress: Callable[[str], None] | None = None,

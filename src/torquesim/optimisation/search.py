@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ModelError, check_range
+from ..fitting.objective import blas_on_one_thread
 from ..io.checkpoint import read_checkpoint, save_checkpoint
 from ..io.fingerprint import fingerprint as hash_parts
 from .problem import FAILED_COST, OptimiseProblem
@@ -124,6 +125,7 @@ def load_checkpoint(path, problem: OptimiseProblem, settings: OptimiseSettings) 
     return state
 
 
+@blas_on_one_thread
 def optimise_population(problem: OptimiseProblem, settings: OptimiseSettings = OptimiseSettings(),
                         *, checkpoint=None, resume: dict | None = None,
                         progress: Callable[[str], None] | None = None,
