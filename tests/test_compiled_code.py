@@ -36,6 +36,48 @@ SCRIPT = textwrap.dedent("""
 
     print(json.dumps({m.__name__.rsplit(".", 1)[-1]: signatures(m) for m in
                       (activation, body, torque_generator, fixed_step, rates, result)}))
+
+    # Arrays Numba's runtime holds after more runs of the code compiled without reference
+    # counting (the monolithic loop, the right-hand side), the partitioned loops beside it
+    import gc
+
+    import numpy as np
+    from numba.core.runtime import rtsys
+
+    def held():
+        gc.collect()
+        stats = rtsys.get_allocation_stats()
+        return stats.alloc - stats.free
+
+    jump = ts.load_model("builtin:squat-jump").replace(duration=0.02)
+    runs = [(curl, "monolithic", 1e-4), (curl, "reference", 0.0), (curl, "imex", 1e-3),
+            (jump, "monolithic", 2.5e-5), (jump, "imex", 2.5e-4), (jump, "reference", 0.0)]
+    # the loops' arrays allocated by compiled code, as in the population kernels (an array
+    # allocated from Python is not counted in the runtime's statistics)
+    import numba
+    from torquesim.solvers import step_loop
+
+    @numba.njit
+    def from_compiled_code(kinds, system, y0, h, n_steps, coupling, rows, width):
+        out, stats = np.empty((rows, width)), np.zeros(fixed_step.STATS_SIZE)
+        step_loop.run_step_loop(kinds, system, y0, h, n_steps, coupling, out, stats)
+        return stats[fixed_step.STEPS]
+
+    def run_all():
+        for model, method, step in runs:
+            options = {"step": step} if step else {"output_step": 1e-3}
+            ts.simulate(model, method, check=False, **options).columns()
+        for model in (curl, jump):
+            coupling = np.zeros(fixed_step.COUPLING_SIZE)
+            y0 = model.initial_state().state
+            from_compiled_code(step_loop.model_step_kinds(model, True, coupling),
+                               tuple(model.pack()), y0, 1e-4, 10, coupling, 11, y0.size)
+
+    run_all()
+    before = held()
+    for _ in range(3):
+        run_all()
+    print(json.dumps({"held_before": before, "held_after": held()}))
 """)
 
 
@@ -46,8 +88,10 @@ def compiled():
     loaded from the cache inside its caller's code would not show its signature)."""
     with tempfile.TemporaryDirectory() as cache:
         done = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
-                              check=True, env={**os.environ, "NUMBA_CACHE_DIR": cache})
-    return json.loads(done.stdout.strip().splitlines()[-1])
+                              check=True, env={**os.environ, "NUMBA_CACHE_DIR": cache,
+                                               "NUMBA_NRT_STATS": "1"})
+    lines = done.stdout.strip().splitlines()
+    return {**json.loads(lines[-2]), "runtime": json.loads(lines[-1])}
 
 
 def test_the_elbow_compiles_no_chain_or_ground_code(compiled):
@@ -64,6 +108,17 @@ def test_the_elbow_compiles_no_chain_or_ground_code(compiled):
     assert compiled["fixed_step"]["rk4_monolithic"]
     for signature in compiled["fixed_step"]["rk4_monolithic"]:
         assert signature[switch] in ("none", "omitted(default=None)"), signature
+
+
+def test_code_without_reference_counting_leaves_no_array_behind(compiled):
+    """The monolithic loop and the right-hand side are compiled without Numba's reference
+    counting (`rates.state_rates`), and so are the functions they are first to compile. A
+    function that returned an array to them would leave it counted and never freed, and one
+    compiled so, then called by counting code, would free arrays still in use: three more
+    rounds of the elbow's and the squat jump's runs (monolithic, the reference and IMEX, in
+    that order) must leave Numba's runtime holding no more arrays than before them."""
+    runtime = compiled["runtime"]
+    assert runtime["held_after"] == runtime["held_before"], runtime
 
 
 def test_every_model_function_is_compiled_once(compiled):

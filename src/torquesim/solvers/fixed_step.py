@@ -6,13 +6,13 @@ The loops take the packed chain arrays (`PackedChain`) as one tuple, the body's 
 (`BodyKinds`, None for one segment) and the units' switches (`step_loop.StepKinds`), write
 the state y = (q, q̇, θ_cc) at every step into ``out`` and fill a ``stats`` array (indices
 below).
-Scratch arrays are allocated once per run, the parameter arrays are read flat with row
-offsets, and the loops over units and joints sit in the step loops themselves, calling only
-loop-free inlined functions of `torquesim.solvers.rates`: a compiled helper holding a loop
-over array arguments costs Numba atomic reference counting at every call, which was measured
-to cost more than the model itself (and so does an inlined one: Numba increfs its array
-arguments, and cannot prune that across its loops; one inlined right-hand side shared with
-the SciPy path made the 6-segment chain's monolithic step 1.07x slower).
+Scratch arrays are allocated once per run and the parameter arrays are read flat with row
+offsets. The monolithic loop evaluates its stages with `rates.state_rates`, the right-hand
+side SciPy's solvers use too; both are compiled without Numba's reference counting (see
+there). The partitioned loops hold their loops over units and joints themselves, calling
+only loop-free inlined functions of `torquesim.solvers.rates`: a compiled helper holding a
+loop over array arguments costs Numba atomic reference counting at every call, which was
+measured to cost more than the model itself.
 
 Stability guard: at the start of every step each unit's time constant τ = a·T_θ·|h'(ω_cc)|/k
 is evaluated (from the slope the CE root finder ends with, so at no extra cost) and the
@@ -75,11 +75,17 @@ from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     SDIRK2,
     TOLERANCE,
 )
-from .rates import (
+from .rates import (  # noqa: F401  (the rows of state_rates' unit array)
+    CE_VELOCITY,
+    EXCITATION,
+    GUESS,
+    TIME_CONSTANT,
+    UNIT_IO_ROWS,
     add_unit_torque,
     check_unit_kinds,
     flat_arrays,
     joint_muscle_torques,
+    state_rates,
     unit_angle,
     unit_angle_at,
     unit_excitation,
@@ -227,47 +233,65 @@ def check_body(joints, seg, body):
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_monolithic(system, y0, h, n_steps, out, stats, body, dynamics):
+def monolithic_scratch_size(system, y0):
+    """Length of the scratch array `rk4_monolithic` works in, for the packed ``system`` and
+    the initial state ``y0``."""
+    n, n_units = system[1].shape[0], system[2].shape[0]
+    return 6 * y0.shape[0] + 16 * n_units + n + body_work_size(n, system[0])
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def rk4_monolithic(system, y0, h, n_steps, out, stats, scratch, body, dynamics):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2) of the
     model ``system`` = (segments, joints, units, profiles) (`PackedChain`) whose body is of
     the kinds ``body`` (`BodyKinds`, None for one segment on a fixed pivot: `check_body`)
     and whose units have activation dynamics (``dynamics`` True) or not (None; see
-    `unit_rates`).
+    `unit_rates`), in the array ``scratch`` of `monolithic_scratch_size`.
 
-    Every stage evaluates body and muscles together. ``out`` has shape (n_steps + 1, len(y)).
-    The activation profiles are evaluated once per stage time. Each stage seeds the CE root
-    finder with a prediction from the previous step (see `_predict`).
+    Every stage evaluates body and muscles together (`state_rates`). ``out`` has shape
+    (n_steps + 1, len(y)). The activation profiles are evaluated once per stage time. Each
+    stage seeds the CE root finder with a prediction from the previous step (see
+    `_predict`). Compiled without reference counting, as `state_rates` is: it allocates
+    nothing, and calls no compiled function that returns an array.
     """
     seg = system[0]
     check_body(system[1], seg, body)
-    n, nu, width, units, joints, profiles = flat_arrays(system)
-    size = y0.shape[0]
-    y = y0.copy()
-    for i in range(size):
-        out[0, i] = y[i]
-    half = rk4_stage_offset(1, h)  # the middle stages' time after the step start
-    k = np.empty((4, size))  # stage derivatives
-    stage = np.empty(size)
+    n, nu, size = system[1].shape[0], system[2].shape[0], y0.shape[0]
+    # the packed rows flat, as `flat_arrays` gives them (a reshape: ravel returns an array
+    # from a compiled function, which a function without reference counting cannot call)
+    units, joints = system[2].reshape(system[2].size), system[1].reshape(system[1].size)
+    width, rows = system[3].shape[1], system[3].reshape(system[3].size)
+    y = scratch[:size]
+    k = scratch[size:5 * size].reshape((4, size))  # stage derivatives
+    stage = scratch[5 * size:6 * size]
+    o = 6 * size
     # CE velocities (rad/s) of stages 1-4 in this step and in the previous one, and of stage 4
     # two steps back: the history the predictions use (NaN: none yet).
-    now = np.empty((4, nu))
-    seen = np.empty((4, nu))
-    seen4_before = np.empty(nu)
-    for u in range(nu):  # loops, not np.full: one array builder less to compile (0.3 s cold)
+    now = scratch[o:o + 4 * nu].reshape((4, nu))
+    seen = scratch[o + 4 * nu:o + 8 * nu].reshape((4, nu))
+    seen4_before = scratch[o + 8 * nu:o + 9 * nu]
+    levels = scratch[o + 9 * nu:o + 12 * nu].reshape((3, nu))  # e(t) at t, t + h/2, t + h
+    unit_io = scratch[o + 12 * nu:o + 16 * nu].reshape((UNIT_IO_ROWS, nu))
+    o += 16 * nu
+    work = scratch[o + n:]  # the body's (`body_work_size`), after the joint torques'
+    model = (n, nu, units, joints, seg, scratch[o:o + n], work)
+    for i in range(size):
+        y[i] = y0[i]
+    for u in range(nu):
         seen4_before[u] = np.nan
         for s in range(4):
             seen[s, u] = np.nan
-    levels = np.empty((3, nu))  # profile values e(t) at t, t + h/2, t + h
-    torque = np.empty(n)
-    work = np.empty(body_work_size(n, seg))
+    for i in range(size):
+        out[0, i] = y[i]
+    half = rk4_stage_offset(1, h)  # the middle stages' time after the step start
     contacts = seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN])
     for u in range(nu):
-        levels[0, u] = unit_excitation(0.0, profiles, width, u)
+        levels[0, u] = unit_excitation(0.0, rows, width, u)
     for step in range(n_steps):
         t = step * h
         for u in range(nu):
-            levels[1, u] = unit_excitation(t + half, profiles, width, u)
-            levels[2, u] = unit_excitation((step + 1) * h, profiles, width, u)
+            levels[1, u] = unit_excitation(t + half, rows, width, u)
+            levels[2, u] = unit_excitation((step + 1) * h, rows, width, u)
         for s in range(4):
             if s == 0:
                 for i in range(size):
@@ -277,33 +301,21 @@ def rk4_monolithic(system, y0, h, n_steps, out, stats, body, dynamics):
                 for i in range(size):
                     stage[i] = y[i] + factor * k[s - 1, i]
             at = 0 if s == 0 else (1 if s < 3 else 2)
-            for j in range(n):
-                torque[j] = 0.0
             for u in range(nu):
-                i = unit_state(n, units, u)
-                psi = unit_angle_at(stage, units, u)
-                add_unit_torque(torque, psi, stage[i], units, u)
+                unit_io[EXCITATION, u] = levels[at, u]
                 if s == 0:
-                    guess = _predict(seen[3, u], seen4_before[u], seen[0, u])
+                    unit_io[GUESS, u] = _predict(seen[3, u], seen4_before[u], seen[0, u])
                 else:
-                    guess = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
-                k[s, i], level_rate, now[s, u], tau = unit_rates(
-                    psi, stage, i, levels[at, u], guess, units, u, dynamics)
-                if dynamics is not None:
-                    if has_activation_state(units, u):
-                        k[s, i + 1] = level_rate
-                if s == 0:
-                    _record_stiffness(stats, t, h / tau, u)
-            for j in range(n):
-                k[s, j] = stage[n + j]
-            if body is not None:
-                tree_accelerations(stage, n, body, torque, seg, joints, work)
-                for j in range(n):
-                    k[s, n + j] = work[n * n + j]
-                if s == 0 and contacts:
-                    _record_contacts(stats, t, h, stage, n, seg, work, body.free_base)
-            else:
-                k[s, 1] = single_segment_acceleration(stage[0], torque[0], seg, joints)
+                    unit_io[GUESS, u] = _predict(now[s - 1, u], seen[s - 1, u], seen[s, u])
+            state_rates(stage, k[s], unit_io, model, body, dynamics)
+            for u in range(nu):
+                now[s, u] = unit_io[CE_VELOCITY, u]
+            if s == 0:
+                for u in range(nu):
+                    _record_stiffness(stats, t, h / unit_io[TIME_CONSTANT, u], u)
+                if body is not None:
+                    if contacts:
+                        _record_contacts(stats, t, h, stage, n, seg, work, body.free_base)
         for u in range(nu):
             seen4_before[u] = seen[3, u]
             for s in range(4):

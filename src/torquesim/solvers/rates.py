@@ -16,12 +16,15 @@ arithmetic is the one-joint formulation's, bit for bit).
 with ω_cc,u the CE velocity solving the CE equation (positive = concentric). ``guess`` (rad/s)
 is a solver's prediction of a CE velocity: it only seeds the root finder (NaN: no guess).
 
-The per-unit functions are loop-free and inlined into the solvers' step loops, which loop over
-units and joints themselves: Numba cannot prune the reference counting of array arguments
-around a compiled function that contains loops, which cost more than the whole model when the
-loops sat in helpers (measured: 2.6x slower elbow steps). The arrays are flat, as the solvers
-pass them: ``units`` holds the units' rows of `UNIT_ROW_SIZE` one
-after another, ``profiles`` the activation rows of ``width``.
+The whole right-hand side dy/dt is assembled in one place, `state_rates`: the monolithic
+loop's stages and SciPy's solvers (`compiled_derivative`) call it. The per-unit functions are
+loop-free and inlined into it and into the partitioned loops, which loop over units and joints
+themselves: Numba counts the references of the arrays a compiled function holding loops
+reads, at every call, and cannot prune that counting, which cost more than the whole model
+when the loops sat in helpers (measured: 2.6x slower elbow steps). `state_rates` holds loops
+and escapes this by being compiled without reference counting (see there). The arrays are
+flat, as the solvers pass them: ``units`` holds the units' rows of `UNIT_ROW_SIZE` one after
+another, ``profiles`` the activation rows of ``width``.
 """
 
 from __future__ import annotations
@@ -30,10 +33,10 @@ import numpy as np
 
 from ..model.activation import activation, activation_rate, activation_time_constant
 from ..model.body import (
-    body_accelerations,
     body_kinds,
     body_work_size,
     single_segment_acceleration,
+    tree_accelerations,
 )
 from ..model.jit import njit
 from ..model.state import has_activation_state, unit_state
@@ -191,25 +194,61 @@ def compiled_derivative(t, y, system, body):
     """`chain_derivative` of the packed ``system`` (`PackedChain`) whose body is of the
     kinds ``body`` (`body_kinds`: None for one segment on a fixed pivot), so that only that
     body's solve is compiled."""
-    seg = system[0]
     n, nu, width, units, joints, profiles = flat_arrays(system)
+    seg = system[0]
+    unit_io = np.empty((UNIT_IO_ROWS, nu))
+    for u in range(nu):
+        unit_io[EXCITATION, u] = unit_excitation(t, profiles, width, u)
+        unit_io[GUESS, u] = np.nan
     dy = np.empty(y.shape[0])
-    torque = np.empty(n)
-    joint_muscle_torques(y, y, units, nu, torque, n)
-    for k in range(n):
-        dy[k] = y[n + k]
-    if body is None:
-        dy[1] = single_segment_acceleration(y[0], torque[0], seg, joints)
-    else:
-        work = np.empty(body_work_size(n, seg))
-        body_accelerations(y, n, torque, seg, joints, work, body)
-        for k in range(n):  # a loop: a slice assignment compiles a shape check (1.6 s cold)
-            dy[n + k] = work[n * n + k]
+    state_rates(y, dy, unit_io, (n, nu, units, joints, seg, np.empty(n),
+                                 np.empty(body_work_size(n, seg))), body, True)
+    return dy
+
+
+#: Rows of `state_rates`' unit array: each unit's profile value e(t) at the stage's time and
+#: the CE root finder's seed (rad/s, NaN: none) in; its CE velocity ω_cc (rad/s) and its
+#: shortest time constant τ (s, `unit_rates`) out.
+EXCITATION, GUESS, CE_VELOCITY, TIME_CONSTANT = range(4)
+UNIT_IO_ROWS = 4
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, forceinline=True)
+def state_rates(y, rates, unit_io, model, body, dynamics):
+    """dy/dt of the whole state ``y`` into ``rates``: the right-hand side, written once for
+    the monolithic loop's stages (`fixed_step.rk4_monolithic`) and SciPy's solvers
+    (`compiled_derivative`): the joint torques of the units' SE torques, each unit's rates
+    (`unit_rates`), the body's accelerations.
+
+    ``unit_io``: the units' inputs and outputs, a row each (`EXCITATION`, `GUESS`,
+    `CE_VELOCITY`, `TIME_CONSTANT`). ``model`` = (n coordinates, n units, flat units, flat
+    joints, segments, joint-torque scratch of n, the body's work array of `body_work_size`,
+    which it leaves as `joint_accelerations` does); ``body`` and ``dynamics`` as for
+    `rk4_monolithic`.
+
+    Compiled without Numba's reference counting (``_nrt=False``: it allocates nothing and
+    returns no array), so that the loops in it cost no counting, and marked for LLVM to
+    inline it at every call (``forceinline``): the loop runs it with no call at all
+    (measured against the stage written out in the loop, min of 5 runs in alternating
+    processes: elbow 0.86x, squat jump 0.94x, 6-segment chain 0.99x per step). Numba's own
+    inlining (``inline="always"``) ran as fast but copies the function's IR once per block
+    while compiling: the cold first ``simulate`` took 1.5 s longer."""
+    n, nu, units, joints, seg, torque, work = model
+    for j in range(n):
+        torque[j] = 0.0
+        rates[j] = y[n + j]
     for u in range(nu):
         i = unit_state(n, units, u)
-        dy[i], level_rate, _, _ = unit_rates(unit_angle_at(y, units, u), y, i,
-                                             unit_excitation(t, profiles, width, u), np.nan,
-                                             units, u, True)
-        if has_activation_state(units, u):
-            dy[i + 1] = level_rate
-    return dy
+        psi = unit_angle_at(y, units, u)
+        add_unit_torque(torque, psi, y[i], units, u)
+        rates[i], level_rate, unit_io[CE_VELOCITY, u], unit_io[TIME_CONSTANT, u] = unit_rates(
+            psi, y, i, unit_io[EXCITATION, u], unit_io[GUESS, u], units, u, dynamics)
+        if dynamics is not None:
+            if has_activation_state(units, u):
+                rates[i + 1] = level_rate
+    if body is None:
+        rates[1] = single_segment_acceleration(y[0], torque[0], seg, joints)
+    else:
+        tree_accelerations(y, n, body, torque, seg, joints, work)
+        for k in range(n):
+            rates[n + k] = work[n * n + k]

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numpy as np
 from numba import types
 from numba.extending import overload
 
@@ -21,7 +22,7 @@ from .coupling_layout import (
     SDIRK2,
 )
 from .error_control import error_controlled_partitioned
-from .fixed_step import rk4_monolithic, rk4_partitioned
+from .fixed_step import monolithic_scratch_size, rk4_monolithic, rk4_partitioned
 
 
 class StepKinds(NamedTuple):
@@ -95,7 +96,9 @@ def _chosen_loop(kinds):
         return controlled
     if kind_on(kinds, "monolithic"):
         def monolithic(kinds, system, y0, h, n_steps, coupling, out, stats):
-            rk4_monolithic(system, y0, h, n_steps, out, stats, kinds.body, kinds.dynamics)
+            scratch = np.empty(monolithic_scratch_size(system, y0))
+            rk4_monolithic(system, y0, h, n_steps, out, stats, scratch, kinds.body,
+                           kinds.dynamics)
         return monolithic
 
     def partitioned(kinds, system, y0, h, n_steps, coupling, out, stats):
