@@ -226,7 +226,7 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
             resume = 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _coupling_acceleration(n, seg, work, b, body):
     """The error of the body's accelerations at the step end from the torque predictor,
     rad/s², into b[_Q]: M⁻¹·δτ for the torque error δτ = τ0 + slope − τ(y_new) (the torque

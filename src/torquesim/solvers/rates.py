@@ -170,7 +170,7 @@ def flat_arrays(system):
             profiles.ravel())
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def joint_muscle_torques(q, x, units, n_units, out, n_joints):
     """τ = Σ_u (row u of the moment-arm matrix)·T_u, N·m, into out[:n_joints], at joint angles
     q and unit states from the state vector x (θ_cc,u = x[unit_state(n, units, u)]).

@@ -45,7 +45,7 @@ def _implicit_residual(w, stretch_known, theta_cc_known, sign, gamma_h, capacity
     return g, slope
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, activation, p,
                               guess, o=0, state_tolerance=0.0):
     """CE velocity w (rad/s) of one implicit (diagonally implicit Runge-Kutta) stage.
