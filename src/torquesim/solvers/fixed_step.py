@@ -260,11 +260,8 @@ def rk4_monolithic(system, y0, h, n_steps, out, stats, scratch, body, dynamics):
     """
     seg = system[0]
     check_body(system[1], seg, body)
-    n, nu, size = system[1].shape[0], system[2].shape[0], y0.shape[0]
-    # the packed rows flat, as `flat_arrays` gives them (a reshape: ravel returns an array
-    # from a compiled function, which a function without reference counting cannot call)
-    units, joints = system[2].reshape(system[2].size), system[1].reshape(system[1].size)
-    width, rows = system[3].shape[1], system[3].reshape(system[3].size)
+    n, nu, width, units, joints, rows = flat_arrays(system)
+    size = y0.shape[0]
     y = scratch[:size]
     k = scratch[size:5 * size].reshape((4, size))  # stage derivatives
     stage = scratch[5 * size:6 * size]

@@ -160,14 +160,16 @@ def unit_level(excitation, y, i, units, u):
     return y[i + 1] if has_activation_state(units, u) else excitation
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def flat_arrays(system):
     """(n coordinates, n units, profile row width, flat units, flat joints, flat profiles) of
     ``system`` = the 2-D packed arrays (segments, joints, units, profiles) of `PackedChain`,
-    as the loops read them (the joint array has a row per coordinate)."""
+    as the loops read them (the joint array has a row per coordinate): views, by reshape
+    (ravel returns its array from a compiled function, which code compiled without
+    reference counting cannot call)."""
     joints, units, profiles = system[1], system[2], system[3]
-    return (joints.shape[0], units.shape[0], profiles.shape[1], units.ravel(), joints.ravel(),
-            profiles.ravel())
+    return (joints.shape[0], units.shape[0], profiles.shape[1], units.reshape(units.size),
+            joints.reshape(joints.size), profiles.reshape(profiles.size))
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
