@@ -237,15 +237,15 @@ def check_body(joints, seg, body):
 
 
 @njit(cache=True, error_model="numpy")
-def monolithic_scratch_size(system, y0):
+def monolithic_scratch_size(system, size):
     """Length of the scratch array `rk4_monolithic` works in, for the packed ``system`` and
-    the initial state ``y0``."""
+    a state of ``size``."""
     n, n_units = system[1].shape[0], system[2].shape[0]
-    return 6 * y0.shape[0] + 16 * n_units + n + body_work_size(n, system[0])
+    return 6 * size + 16 * n_units + n + body_work_size(n, system[0])
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def rk4_monolithic(system, y0, h, n_steps, out, stats, scratch, body, dynamics):
+def rk4_monolithic(system, h, n_steps, out, stats, scratch, body, dynamics):
     """Classical RK4 on the whole state y = (q, q̇, the units' states) (technique 2) of the
     model ``system`` = (segments, joints, units, profiles) (`PackedChain`) whose body is of
     the kinds ``body`` (`BodyKinds`, None for one segment on a fixed pivot: `check_body`)
@@ -253,15 +253,16 @@ def rk4_monolithic(system, y0, h, n_steps, out, stats, scratch, body, dynamics):
     `unit_rates`), in the array ``scratch`` of `monolithic_scratch_size`.
 
     Every stage evaluates body and muscles together (`state_rates`). ``out`` has shape
-    (n_steps + 1, len(y)). The activation profiles are evaluated once per stage time. Each
-    stage seeds the CE root finder with a prediction from the previous step (see
-    `_predict`). Compiled without reference counting, as `state_rates` is: it allocates
-    nothing, and calls no compiled function that returns an array.
+    (n_steps + 1, len(y)), the initial state in out[0]. The activation profiles are
+    evaluated once per stage time. Each stage seeds the CE root finder with a prediction
+    from the previous step (see `_predict`). Compiled without reference counting, as
+    `state_rates` is: it allocates nothing, and calls no compiled function that returns an
+    array.
     """
     seg = system[0]
     check_body(system[1], seg, body)
     n, nu, width, units, joints, rows = flat_arrays(system)
-    size = y0.shape[0]
+    size = out.shape[1]
     y = scratch[:size]
     k = scratch[size:5 * size].reshape((4, size))  # stage derivatives
     stage = scratch[5 * size:6 * size]
@@ -277,13 +278,11 @@ def rk4_monolithic(system, y0, h, n_steps, out, stats, scratch, body, dynamics):
     work = scratch[o + n:]  # the body's (`body_work_size`), after the joint torques'
     model = (n, nu, units, joints, seg, scratch[o:o + n], work)
     for i in range(size):
-        y[i] = y0[i]
+        y[i] = out[0, i]
     for u in range(nu):
         seen4_before[u] = np.nan
         for s in range(4):
             seen[s, u] = np.nan
-    for i in range(size):
-        out[0, i] = y[i]
     half = rk4_stage_offset(1, h)  # the middle stages' time after the step start
     contacts = seg.shape[0] > int(seg[0, SEG_COUNT_COLUMN])
     for u in range(nu):
@@ -656,8 +655,7 @@ def _muscles_at_step_start(muscles, t, y, hm, b, stats, dynamics):
 
 
 @njit(cache=True, error_model="numpy")
-def rk4_partitioned(system, h, n_steps, coupling, out, stats, body, dynamics, implicit_muscles,
-                    implicit_body):
+def rk4_partitioned(kinds, system, h, n_steps, coupling, out, stats):
     """Body and muscle parts each advanced by their own integrator, exchanging at step
     boundaries (technique 1), under the coupling scheme ``coupling`` (see ``Coupling``).
 
@@ -666,13 +664,15 @@ def rk4_partitioned(system, h, n_steps, coupling, out, stats, body, dynamics, im
     Within a step each exchanged signal is affine in time: its step-start value plus a slope
     that is zero (hold), the previous step's change (linear extrapolation) or, once the other
     part has been advanced in this step, the change it produced (Gauss-Seidel / iteration).
-    ``body`` and ``dynamics``: as for `rk4_monolithic`. The muscle part is advanced by its
-    solver's tableau (`_muscle_part`): SDIRK2 (``implicit_muscles`` True) or RK4 (None); the
-    body part by RK4 (``implicit_body`` None, `_body_rk4`) or by ROS2, linearly implicit in
-    its stiff forces (True, `_body_ros2`); both must be the packed ``coupling``'s. The
-    initial state is out[0]. (The every-stage exchange is monolithic RK4: `run_step_loop`
-    runs it in `rk4_monolithic`.)
+    ``kinds``: the loop's `step_loop.StepKinds`, whose ``body`` and ``dynamics`` are as for
+    `rk4_monolithic`. The muscle part is advanced by its solver's tableau (`_muscle_part`):
+    SDIRK2 (``implicit_muscles`` True) or RK4 (None); the body part by RK4 (``implicit_body``
+    None, `_body_rk4`) or by ROS2, linearly implicit in its stiff forces (True,
+    `_body_ros2`); both must be the packed ``coupling``'s. The initial state is out[0]. (The
+    every-stage exchange is monolithic RK4: `run_step_loop` runs it in `rk4_monolithic`.)
     """
+    body, dynamics = kinds.body, kinds.dynamics
+    implicit_muscles, implicit_body = kinds.implicit_muscles, kinds.implicit_body
     seg = system[0]
     check_body(system[1], seg, body)
     if (int(coupling[MUSCLE_SOLVER]) == SDIRK2) != (implicit_muscles is not None) or \

@@ -96,16 +96,16 @@ def _chosen_loop(kinds):
         return controlled
     if kind_on(kinds, "monolithic"):
         def monolithic(kinds, system, y0, h, n_steps, coupling, out, stats):
-            scratch = np.empty(monolithic_scratch_size(system, y0))
-            rk4_monolithic(system, y0, h, n_steps, out, stats, scratch, kinds.body,
-                           kinds.dynamics)
+            for i in range(y0.shape[0]):
+                out[0, i] = y0[i]
+            scratch = np.empty(monolithic_scratch_size(system, y0.shape[0]))
+            rk4_monolithic(system, h, n_steps, out, stats, scratch, kinds.body, kinds.dynamics)
         return monolithic
 
     def partitioned(kinds, system, y0, h, n_steps, coupling, out, stats):
         for i in range(y0.shape[0]):  # (a loop: a slice assignment compiles a shape check)
             out[0, i] = y0[i]
-        rk4_partitioned(system, h, n_steps, coupling, out, stats, kinds.body, kinds.dynamics,
-                        kinds.implicit_muscles, kinds.implicit_body)
+        rk4_partitioned(kinds, system, h, n_steps, coupling, out, stats)
     return partitioned
 
 
