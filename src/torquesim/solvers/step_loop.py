@@ -105,7 +105,8 @@ def _chosen_loop(kinds):
     def partitioned(kinds, system, y0, h, n_steps, coupling, out, stats):
         for i in range(y0.shape[0]):  # (a loop: a slice assignment compiles a shape check)
             out[0, i] = y0[i]
-        rk4_partitioned(kinds, system, h, n_steps, coupling, out, stats)
+        rk4_partitioned(system, h, n_steps, coupling, out, stats, kinds.body, kinds.dynamics,
+                        kinds.implicit_muscles, kinds.implicit_body)
     return partitioned
 
 
