@@ -79,7 +79,7 @@ from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     SDIRK2,
     TOLERANCE,
 )
-from .rates import (  # noqa: F401  (the rows of state_rates' unit array)
+from .rates import (
     CE_VELOCITY,
     EXCITATION,
     GUESS,

@@ -232,9 +232,10 @@ def state_rates(y, rates, unit_io, model, body, dynamics):
     returns no array), so that the loops in it cost no counting, and marked for LLVM to
     inline it at every call (``forceinline``): the loop runs it with no call at all
     (measured against the stage written out in the loop, min of 5 runs in alternating
-    processes: elbow 0.86x, squat jump 0.94x, 6-segment chain 0.99x per step). Numba's own
-    inlining (``inline="always"``) ran as fast but copies the function's IR once per block
-    while compiling: the cold first ``simulate`` took 1.5 s longer."""
+    processes, several rounds: elbow 0.86-0.94x, squat jump 0.94-0.95x, 6-segment chain
+    0.99-1.01x per step). Numba's own inlining (``inline="always"``) ran as fast but copies
+    the function's IR once per block while compiling: the cold first ``simulate`` took 1.5 s
+    longer."""
     n, nu, units, joints, seg, torque, work = model
     for j in range(n):
         torque[j] = 0.0
