@@ -236,12 +236,20 @@ def check_body(joints, seg, body):
             raise ValueError("tree must be True exactly for a body that is not a serial chain")
 
 
+#: Rows of `rk4_monolithic`'s scratch as long as the state (y, the 4 stage derivatives, the
+#: stage) and as long as the units (this step's 4 stage CE velocities, the previous step's 4
+#: and stage 4 two steps back, the 3 profile values, `state_rates`' unit rows).
+_MONOLITHIC_STATE_ROWS = 6
+_MONOLITHIC_UNIT_ROWS = 4 + 4 + 1 + 3 + UNIT_IO_ROWS
+
+
 @njit(cache=True, error_model="numpy")
 def monolithic_scratch_size(system, size):
     """Length of the scratch array `rk4_monolithic` works in, for the packed ``system`` and
     a state of ``size``."""
     n, n_units = system[1].shape[0], system[2].shape[0]
-    return 6 * size + 16 * n_units + n + body_work_size(n, system[0])
+    return (_MONOLITHIC_STATE_ROWS * size + _MONOLITHIC_UNIT_ROWS * n_units + n
+            + body_work_size(n, system[0]))
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -266,15 +274,15 @@ def rk4_monolithic(system, h, n_steps, out, stats, scratch, body, dynamics):
     y = scratch[:size]
     k = scratch[size:5 * size].reshape((4, size))  # stage derivatives
     stage = scratch[5 * size:6 * size]
-    o = 6 * size
+    o = _MONOLITHIC_STATE_ROWS * size
     # CE velocities (rad/s) of stages 1-4 in this step and in the previous one, and of stage 4
     # two steps back: the history the predictions use (NaN: none yet).
     now = scratch[o:o + 4 * nu].reshape((4, nu))
     seen = scratch[o + 4 * nu:o + 8 * nu].reshape((4, nu))
     seen4_before = scratch[o + 8 * nu:o + 9 * nu]
     levels = scratch[o + 9 * nu:o + 12 * nu].reshape((3, nu))  # e(t) at t, t + h/2, t + h
-    unit_io = scratch[o + 12 * nu:o + 16 * nu].reshape((UNIT_IO_ROWS, nu))
-    o += 16 * nu
+    unit_io = scratch[o + 12 * nu:o + _MONOLITHIC_UNIT_ROWS * nu].reshape((UNIT_IO_ROWS, nu))
+    o += _MONOLITHIC_UNIT_ROWS * nu
     work = scratch[o + n:]  # the body's (`body_work_size`), after the joint torques'
     model = (n, nu, units, joints, seg, scratch[o:o + n], work)
     for i in range(size):
