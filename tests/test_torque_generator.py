@@ -154,7 +154,9 @@ def test_guard_time_constant_from_the_root_finder_is_the_closed_form(stretch, th
     y = np.array([0.0, 0.0, theta_cc])
     psi = theta_cc - stretch
     stretch = theta_cc - psi  # the stretch unit_rates sees (d = 1), rounded as it is
-    rate, _, w, tau = unit_rates(psi, y, 2, a, guess, row, 0, None)
+    rates = np.empty(3)
+    w, tau = unit_rates(psi, y, 2, a, guess, row, 0, None, rates)
+    rate = rates[2]
     assert rate == w
     assert w == pytest.approx(tg.unit_ce_velocity(stretch, theta_cc, a, p), rel=1e-12,
                               abs=1e-12)

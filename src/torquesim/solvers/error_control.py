@@ -55,7 +55,7 @@ from .rates import check_unit_kinds, flat_arrays, joint_muscle_torques
 from .techniques import VELOCITY_SCALE
 
 #: The units' implicit stages iterate until an update moves a unit's state by at most this
-#: fraction of the angle tolerance (`unit_implicit_ce_velocity`'s ``state_tolerance``, as
+#: fraction of the angle tolerance (`unit_implicit_stage`'s ``state_tolerance``, as
 #: CVODE's nonlinear tolerance), and at most by `NEWTON_MAX_STATE_ERROR` rad: at a loose
 #: tolerance every step is the largest, and unit states solved to a tenth of it made those
 #: runs' errors erratic (the arm raise 0.07° off at atol 1 and 1e-2 rad, 2.5° at 1e-3; its

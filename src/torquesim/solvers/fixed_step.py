@@ -32,7 +32,6 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-from ..model.activation import implicit_activation
 from ..model.body import (
     ENDSTOP_HIGH,
     ENDSTOP_LOW,
@@ -51,13 +50,7 @@ from ..model.body import (
     tree_accelerations,
 )
 from ..model.jit import njit
-from ..model.state import has_activation_state, unit_state, unit_states_start
-from ..model.unit_row import (
-    UNIT_ACTIVATION_TIME,
-    UNIT_DEACTIVATION_TIME,
-    UNIT_DIRECTION,
-    UNIT_ROW_SIZE,
-)
+from ..model.state import unit_state, unit_states_start
 from . import tableaus  # the module: coupling_layout's SDIRK2 is the muscle solver's code
 from .coupling_layout import (  # noqa: F401  (the layout, read here as fs.NAME)
     ABSOLUTE_TOLERANCE,
@@ -96,7 +89,7 @@ from .rates import (
     unit_joints,
     unit_rates,
 )
-from .sdirk import unit_implicit_ce_velocity
+from .sdirk import unit_implicit_stage
 
 # Indices of the stats array returned by the loops.
 # NEWTON_ITERATIONS: residual evaluations of the implicit unit equations (each one a Newton
@@ -546,18 +539,17 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
     angles are q(s) = q_n + slope·s/h (slope = b[_Q_SLOPE]), the activation profiles are
     evaluated at every stage time. Result into y_new[2n:]. ``muscles`` = (n, number of units,
     profile row width, flat units, flat profiles, the implicit stages' Newton tolerance on a
-    unit's state in rad: `unit_implicit_ce_velocity`'s ``state_tolerance``, 0 in the
-    fixed-step loops).
+    unit's state in rad: `unit_implicit_stage`'s ``state_tolerance``, 0 in the fixed-step
+    loops).
 
     A stage with a_ss = 0 evaluates the units' rates (`unit_rates`); one with a_ss > 0 solves
-    each unit's stage equation for its CE velocity (`unit_implicit_ce_velocity`; with
-    activation dynamics the stage activation first, in closed form by `implicit_activation`:
-    it does not depend on θ_cc), which leaves the muscle part no step-size stability limit.
-    The units are independent given q(s). Each stage's CE velocity of a unit (b[_W]) seeds its
-    next stage's root finder; the first is b[_OMEGA], the CE velocities at the step start. A
-    first stage that is explicit at the step start takes the rates the caller evaluated there
-    (b[_RATE]). Stage rates go into the rows b[_K1…] and stage states into b[_MUSCLE_STAGE]
-    (indexed as y).
+    each unit's implicit stage (`unit_implicit_stage`), which leaves the muscle part no
+    step-size stability limit. Either term writes all of a unit's stage rates, whatever its
+    kind: the loop knows no unit's states. The units are independent given q(s). Each
+    stage's CE velocity of a unit (b[_W]) seeds its next stage's root finder; the first is
+    b[_OMEGA], the CE velocities at the step start. A first stage that is explicit at the step
+    start takes the rates the caller evaluated there (b[_RATE]). Stage rates go into the rows
+    b[_K1…] and stage states into b[_MUSCLE_STAGE] (indexed as y).
 
     Returns the work: explicit stage evaluations of the muscle part (RK4: 4·substeps − 1),
     implicit stage equations solved and their residual evaluations (`NFEV_MUSCLE`,
@@ -603,31 +595,16 @@ def _muscle_part(muscles, t, y, h, substeps, b, y_new, dynamics, explicit, impli
                 psi = unit_angle(y[j] + b[_Q_SLOPE, j] / h * at,
                                  y[j2] + b[_Q_SLOPE, j2] / h * at, units, u)
                 level = unit_excitation(t + at, profiles, width, u)
-                dynamic = False
-                if dynamics is not None:
-                    dynamic = has_activation_state(units, u)
                 if explicit is not None:
                     if gh == 0.0:
-                        b[_K1 + s, i], level_rate, b[_W, u], _ = unit_rates(
-                            psi, stage, i, level, b[_W, u], units, u, dynamics)
-                        if dynamic:
-                            b[_K1 + s, i + 1] = level_rate
+                        b[_W, u], _ = unit_rates(psi, stage, i, level, b[_W, u], units, u,
+                                                 dynamics, b[_K1 + s])
                         continue
                 if implicit is not None:  # (the tableau is SDIRK2's: every stage implicit)
-                    o = u * UNIT_ROW_SIZE
-                    if dynamic:  # the stage activation, then its rate
-                        stage_a = implicit_activation(stage[i + 1], level, gh,
-                                                      units[o + UNIT_ACTIVATION_TIME],
-                                                      units[o + UNIT_DEACTIVATION_TIME])
-                        b[_K1 + s, i + 1] = (stage_a - stage[i + 1]) / gh
-                        level = stage_a
-                    d = units[o + UNIT_DIRECTION]
-                    w, count = unit_implicit_ce_velocity(d * (stage[i] - psi), stage[i], d, gh,
-                                                         level, units, b[_W, u], o,
-                                                         newton_tolerance)
+                    b[_W, u], count = unit_implicit_stage(psi, stage, i, level, gh, b[_W, u],
+                                                          units, u, dynamics, newton_tolerance,
+                                                          b[_K1 + s])
                     solves += count
-                    b[_W, u] = w
-                    b[_K1 + s, i] = d * w
         for i in range(first, size):
             increment = 0.0
             for s in range(stages):
@@ -652,12 +629,8 @@ def _muscles_at_step_start(muscles, t, y, hm, b, stats, dynamics):
         i = unit_state(n, units, u)
         psi = unit_angle_at(y, units, u)
         add_unit_torque(b[_TORQUE0], psi, y[i], units, u)
-        b[_RATE, i], level_rate, b[_OMEGA, u], tau = unit_rates(
-            psi, y, i, unit_excitation(t, profiles, width, u), b[_OMEGA, u], units, u,
-            dynamics)
-        if dynamics is not None:
-            if has_activation_state(units, u):
-                b[_RATE, i + 1] = level_rate
+        b[_OMEGA, u], tau = unit_rates(psi, y, i, unit_excitation(t, profiles, width, u),
+                                       b[_OMEGA, u], units, u, dynamics, b[_RATE])
         _record_stiffness(stats, t, hm / tau, u)
     stats[NFEV_MUSCLE] += 1
 

@@ -113,17 +113,18 @@ def unit_excitation(t, profiles, width, u):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def unit_rates(psi, y, i, excitation, guess, units, u, dynamics):
-    """The rates of unit u whose states start at y[i] (θ_cc; then a, with activation
-    dynamics), at unit angle ``psi`` (`unit_angle`) and profile value ``excitation``:
-    (dθ_cc/dt, da/dt, ω_cc, τ) in rad/s, 1/s, rad/s, s.
+def unit_rates(psi, y, i, excitation, guess, units, u, dynamics, rates):
+    """The rates of unit u's own states, which start at y[i] (θ_cc; then a, with activation
+    dynamics), into rates[i:] (dθ_cc/dt in rad/s; da/dt in 1/s), at unit angle ``psi``
+    (`unit_angle`) and profile value ``excitation``. Returns (ω_cc, τ) in rad/s and s.
 
     This is the one place a unit's activation is read: its profile value e(t) without
-    activation dynamics, its state y[i + 1] with (da/dt is then `activation_rate`, else 0 and
-    not a state). ``dynamics``: True when some unit of the model has activation dynamics,
-    None when none has (a compile-time constant: the activation-state code is then not
-    compiled, `check_unit_kinds`). τ is the unit's shortest time constant (the stability
-    guard's input): its CE's, from the root finder's last slope, or with dynamics
+    activation dynamics, its state y[i + 1] with (da/dt is then `activation_rate`). The
+    loops call it for any unit and know neither its kind nor how many states it has.
+    ``dynamics``: True when some unit of the model has activation dynamics, None when none
+    has (a compile-time constant: the activation-state code is then not compiled,
+    `check_unit_kinds`). τ is the unit's shortest time constant (the stability guard's
+    input): its CE's, from the root finder's last slope, or with dynamics
     `activation_time_constant` if that is shorter."""
     o = u * UNIT_ROW_SIZE
     theta_cc = y[i]
@@ -134,13 +135,13 @@ def unit_rates(psi, y, i, excitation, guess, units, u, dynamics):
                                             level, units, o)
     w, slope = ce_velocity_and_slope(target, units, guess, damping, o)
     tau = ce_time_constant(capacity, slope, units, o)
-    level_rate = 0.0
+    rates[i] = units[o + UNIT_DIRECTION] * w
     if dynamics is not None:
         if has_activation_state(units, u):
             t_act, t_deact = units[o + UNIT_ACTIVATION_TIME], units[o + UNIT_DEACTIVATION_TIME]
-            level_rate = activation_rate(excitation, level, t_act, t_deact)
+            rates[i + 1] = activation_rate(excitation, level, t_act, t_deact)
             tau = min(tau, activation_time_constant(excitation, level, t_act, t_deact))
-    return units[o + UNIT_DIRECTION] * w, level_rate, w, tau
+    return w, tau
 
 
 @njit(cache=True, error_model="numpy")
@@ -244,11 +245,8 @@ def state_rates(y, rates, unit_io, model, body, dynamics):
         i = unit_state(n, units, u)
         psi = unit_angle_at(y, units, u)
         add_unit_torque(torque, psi, y[i], units, u)
-        rates[i], level_rate, unit_io[CE_VELOCITY, u], unit_io[TIME_CONSTANT, u] = unit_rates(
-            psi, y, i, unit_io[EXCITATION, u], unit_io[GUESS, u], units, u, dynamics)
-        if dynamics is not None:
-            if has_activation_state(units, u):
-                rates[i + 1] = level_rate
+        unit_io[CE_VELOCITY, u], unit_io[TIME_CONSTANT, u] = unit_rates(
+            psi, y, i, unit_io[EXCITATION, u], unit_io[GUESS, u], units, u, dynamics, rates)
     if body is None:
         rates[1] = single_segment_acceleration(y[0], torque[0], seg, joints)
     else:

@@ -1,13 +1,16 @@
-"""The implicit stage equation of a unit's CE, for the SDIRK2 muscle solver (IMEX).
+"""A unit's implicit stage, for the SDIRK2 muscle solver (IMEX): `unit_implicit_stage`.
 
 A diagonally implicit Runge-Kutta stage asks for the CE velocity w at the stage state it
 produces itself: θ_cc = θ_cc,known + d·γh·w, s = s_known + γh·w. This module solves that
-scalar equation; the CE equation itself lives in `torquesim.model.torque_generator`.
+scalar equation (`unit_implicit_ce_velocity`); the CE equation itself lives in
+`torquesim.model.torque_generator`.
 """
 
 from __future__ import annotations
 
+from ..model.activation import implicit_activation
 from ..model.jit import njit
+from ..model.state import has_activation_state
 from ..model.torque_generator import (
     ACTIVATION_FLOOR,
     CE_DAMPING,
@@ -17,6 +20,12 @@ from ..model.torque_generator import (
     ce_torque_velocity_slope,
     torque_angle,
     torque_angle_slope,
+)
+from ..model.unit_row import (
+    UNIT_ACTIVATION_TIME,
+    UNIT_DEACTIVATION_TIME,
+    UNIT_DIRECTION,
+    UNIT_ROW_SIZE,
 )
 
 #: An update of the CE velocity below this fraction of ω_max counts as within Newton's
@@ -108,3 +117,30 @@ def unit_implicit_ce_velocity(stretch_known, theta_cc_known, sign, gamma_h, acti
             return w_new, evaluations
         w = w_new
     return w, evaluations
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unit_implicit_stage(psi, stage, i, excitation, gamma_h, guess, units, u, dynamics,
+                        state_tolerance, rates):
+    """The implicit stage of unit u, whose known stage states start at stage[i] (the step's
+    states plus the earlier stages' part), at unit angle ``psi`` and profile value
+    ``excitation``: its stage rates into rates[i:], as `unit_rates` gives explicit ones.
+    With activation dynamics the stage activation first, in closed form
+    (`implicit_activation`: it does not depend on θ_cc), then the CE velocity at it
+    (`unit_implicit_ce_velocity`, seeded with ``guess``, its Newton tolerance
+    ``state_tolerance``). ``dynamics`` as for `unit_rates`. Returns (w, residual
+    evaluations)."""
+    o = u * UNIT_ROW_SIZE
+    level = excitation
+    if dynamics is not None:
+        if has_activation_state(units, u):
+            stage_a = implicit_activation(stage[i + 1], excitation, gamma_h,
+                                          units[o + UNIT_ACTIVATION_TIME],
+                                          units[o + UNIT_DEACTIVATION_TIME])
+            rates[i + 1] = (stage_a - stage[i + 1]) / gamma_h
+            level = stage_a
+    d = units[o + UNIT_DIRECTION]
+    w, count = unit_implicit_ce_velocity(d * (stage[i] - psi), stage[i], d, gamma_h, level,
+                                         units, guess, o, state_tolerance)
+    rates[i] = d * w
+    return w, count
