@@ -690,14 +690,9 @@ class ChainModel:
 
     def state_names(self) -> tuple[str, ...]:
         """Names of the entries of y: coordinates, their speeds, each unit's CE angle (and
-        activation, for a unit with activation dynamics)."""
-        own = []
-        for unit in self.units:
-            own.append(f"theta_cc_{unit.name}")
-            if unit.activation_dynamics is not None:
-                own.append(f"activation_state_{unit.name}")
-        coordinates = (*BASE_COORDINATES[:self.n_base], *(j.coordinate for j in self.joints))
-        return (*coordinates, *(f"{c}_speed" for c in coordinates), *own)
+        activation, for a unit with activation dynamics): the output table's columns after
+        its time (`output_columns`)."""
+        return tuple(c for c, _ in self._output_column_pairs()[1:1 + self.state_size])
 
     def output_columns(self) -> dict[str, str]:
         """Every column of the output table (`SimulationResult.columns`) in table order, each
@@ -1191,7 +1186,7 @@ class ChainModel:
         layout = self.layout
         for i in range(nu):
             state[layout.unit_state(i)] = theta_cc[i]
-            if layout.activation_state(i) is not None:
+            if self.units[i].activation_dynamics is not None:
                 state[layout.activation_state(i)] = levels[i]  # at rest a = e
         speeds = np.array([float(j.initial_speed) for j in self.joints])
         if np.any(speeds):
