@@ -40,22 +40,6 @@ def _fail(path: Path, message: str, field: str = "target") -> ModelError:
     return ModelError(field, f"{path.name}: {message}")
 
 
-def _pick_column(path: Path, names: list[str], column: str | None) -> str:
-    """The one angle column of a single-joint read: ``column``, else the only non-time
-    column, else the only one whose name contains "elbow"."""
-    others = [n for n in names if n.lower() != "time"]
-    if column is not None:
-        if column not in others:
-            raise _fail(path, f"no column {column!r}; allowed: {', '.join(others)}")
-        return column
-    elbow = [n for n in others if "elbow" in n.lower()]
-    if len(others) == 1:
-        return others[0]
-    if len(elbow) == 1:
-        return elbow[0]
-    raise _fail(path, f"several angle columns; choose one with --column: {', '.join(others)}")
-
-
 def _number(path: Path, text: str, line: int, column: str, field: str = "target") -> float:
     try:
         value = float(text)
@@ -208,17 +192,3 @@ def longest_run(mask: np.ndarray) -> tuple[int, int]:
         return 0, 0
     k = int(np.argmax(stops - starts))
     return int(starts[k]), int(stops[k])
-
-
-def read_angle_history(path, column: str | None = None,
-                       units: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
-    """One angle history from a file of `read_angle_table`'s formats: ``column``, or
-    the only angle column, or the only one whose name contains "elbow". Returns (time,
-    angle_rad, column_name)."""
-    path = Path(path)
-    time, angles = read_angle_table(path, units,
-                                    columns=lambda names: [_pick_column(path, names, column)])
-    (name, angle), = angles.items()
-    return time, angle, name
-
-

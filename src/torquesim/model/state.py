@@ -79,11 +79,6 @@ class StateLayout:
         """q̇, rad/s (joint angular velocities)."""
         return slice(self.n_coordinates + self.n_base, 2 * self.n_coordinates)
 
-    @property
-    def unit_states(self) -> slice:
-        """Every unit's own states, unit by unit."""
-        return slice(2 * self.n_coordinates, self.size)
-
     def unit_offset(self, u: int) -> int:
         """Offset of unit ``u``'s first state from the first unit state."""
         return sum(self.unit_widths[:u])
