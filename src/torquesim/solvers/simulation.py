@@ -26,6 +26,7 @@ from .techniques import (
     GROUND_CONTROL_ATOL,
     METHODS,
     MIN_CONTROL_ATOL,
+    REFERENCE,
     SCIPY_METHODS,
     default_coupling,
     explicit_muscles,
@@ -196,7 +197,7 @@ def simulate(
         check_range("rtol", rtol, 1e-14, 1.0)
         check_range("atol", atol, 1e-16, 1.0)
         result = _adaptive(model, packed, y0, method, name, rtol, atol, output_step)
-        if tolerance is not None and method != "reference" and result.success:
+        if tolerance is not None and method != REFERENCE and result.success:
             check_range("tolerance", tolerance, 0.0, math.pi, low_open=True, unit="rad")
             result = _with_tighter_estimate(result, model, packed, y0, method, name, tolerance)
     else:
@@ -703,7 +704,7 @@ def _adaptive(model, packed, y0, label, name, rtol, atol, output_step) -> Simula
     wall = _time.perf_counter() - start
     ok = filled == grid.size and np.all(np.isfinite(states))
     if not ok:
-        others = "" if label == "reference" else " or method 'reference'"
+        others = "" if label == REFERENCE else f" or method '{REFERENCE}'"
         advice = (f"use smaller rtol and atol{others}" if "spacing between numbers" not in
                   message else "the motion there needs steps below the time's resolution "
                   "(check it up to that time: a body falling through the ground or a unit "

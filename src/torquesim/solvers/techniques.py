@@ -64,10 +64,14 @@ class Technique:
         return self.error_controlled or scipy_solver(self.method) is not None
 
 
+#: The ``method`` of the reference solution: SciPy's Radau at tight tolerances.
+REFERENCE = "reference"
+
+
 def scipy_solver(method: str) -> str | None:
     """The SciPy solver an adaptive ``method`` runs (``reference``: Radau; ``scipy:NAME``:
     NAME, valid or not); None for a fixed-step method."""
-    if method == "reference":
+    if method == REFERENCE:
         return "Radau"
     return method.split(":", 1)[1] if method.startswith("scipy:") else None
 
@@ -148,7 +152,7 @@ ERROR_CONTROLLED_METHODS = tuple(t.method for t in TECHNIQUES if t.error_control
 #: atol, and a decade of it costs √10 in steps (order 2).
 CONTROLLED_TOLERANCES = (2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6)
 #: Every ``method`` name `simulate` accepts besides ``scipy:NAME``.
-METHODS = (*FIXED_STEP_METHODS, *ERROR_CONTROLLED_METHODS, "reference")
+METHODS = (*FIXED_STEP_METHODS, *ERROR_CONTROLLED_METHODS, REFERENCE)
 #: The methods a fit, an optimisation or a sweep may use (fixed step: the population runs in
 #: compiled code), the IMEX technique, their default, first.
 FIT_METHODS = tuple(sorted(FIXED_STEP_METHODS, key=lambda m: m != "imex"))
