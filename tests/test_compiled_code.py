@@ -13,7 +13,7 @@ import textwrap
 
 import pytest
 
-from torquesim.solvers import fixed_step
+from torquesim.solvers import monolithic
 
 # Both tests read one fresh-interpreter compile (20 s), made once: the tests of a file run in
 # one test process (pyproject's ``--dist loadfile``).
@@ -22,7 +22,7 @@ SCRIPT = textwrap.dedent("""
     import json
     import torquesim as ts
     from torquesim.model import activation, body, torque_generator
-    from torquesim.solvers import fixed_step, rates, result
+    from torquesim.solvers import fixed_step, monolithic, partitioned, rates, result
 
     curl = ts.load_model("builtin:elbow-curl").replace(duration=0.3)
     ts.simulate(curl, "monolithic", 1e-4).columns()
@@ -35,7 +35,8 @@ SCRIPT = textwrap.dedent("""
                 and getattr(module, name).__module__ == module.__name__}
 
     print(json.dumps({m.__name__.rsplit(".", 1)[-1]: signatures(m) for m in
-                      (activation, body, torque_generator, fixed_step, rates, result)}))
+                      (activation, body, torque_generator, fixed_step, monolithic,
+                       partitioned, rates, result)}))
 
     # Arrays Numba's runtime holds after more runs of the code compiled without reference
     # counting (the monolithic loop, the right-hand side), the partitioned loops beside it
@@ -103,10 +104,10 @@ def test_the_elbow_compiles_no_chain_or_ground_code(compiled):
     for name in ("body_accelerations", "_free_base_terms", "ground_outputs",
                  "contact_time_constant"):
         assert body.get(name, []) == [], name
-    switch = list(inspect.signature(fixed_step.rk4_monolithic.py_func).parameters) \
+    switch = list(inspect.signature(monolithic.rk4_monolithic.py_func).parameters) \
         .index("body")
-    assert compiled["fixed_step"]["rk4_monolithic"]
-    for signature in compiled["fixed_step"]["rk4_monolithic"]:
+    assert compiled["monolithic"]["rk4_monolithic"]
+    for signature in compiled["monolithic"]["rk4_monolithic"]:
         assert signature[switch] in ("none", "omitted(default=None)"), signature
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from torquesim.solvers import fixed_step as fs
+from torquesim.solvers import partitioned as pt
 from torquesim.solvers.coupling import IMEX, Coupling
 from torquesim.solvers.tableaus import RK4, SDIRK2, ButcherTableau
 from torquesim.solvers.techniques import coupling_order, method_technique
@@ -61,8 +62,8 @@ def test_the_compiled_loops_use_the_tableaus_numbers():
         assert fs.rk4_increment(*k, h) == pytest.approx(expected, rel=1e-14,
                                                         abs=1e-14 * h * np.abs(k).max())
     # the muscle part runs its solver's tableau itself, the arrays of the tableau's numbers
-    for tableau, arrays in ((RK4, (fs._RK4_A, fs._RK4_B, fs._RK4_C)),
-                            (SDIRK2, (fs._SDIRK2_A, fs._SDIRK2_B, fs._SDIRK2_C))):
+    for tableau, arrays in ((RK4, (pt._RK4_A, pt._RK4_B, fs._RK4_C)),
+                            (SDIRK2, (pt._SDIRK2_A, pt._SDIRK2_B, pt._SDIRK2_C))):
         assert [a.tolist() for a in arrays] == [[list(r) for r in tableau.a], list(tableau.b),
                                                 list(tableau.c)]
 

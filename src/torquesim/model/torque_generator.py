@@ -518,7 +518,8 @@ def unit_time_constant(omega_cc, theta_cc, activation, p, o=0):
     β = ``ce_damping``, 0 by default).
 
     Returns +inf where the CE velocity is clamped (slack SE or ±ω_max), where it does not
-    respond to the state. Explicit RK4 is stable for step/τ ≤ 2.785 (torquesim.solvers.fixed_step).
+    respond to the state. Explicit RK4 is stable for step/τ ≤ 2.785
+    (torquesim.solvers.fixed_step.RK4_STABILITY_LIMIT).
     """
     wmax = p[o + OMEGA_MAX]
     if omega_cc >= wmax or omega_cc <= -wmax:

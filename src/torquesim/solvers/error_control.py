@@ -50,6 +50,7 @@ from ..model.body import (
 from ..model.jit import njit
 from ..model.state import unit_states_start
 from . import fixed_step as fs
+from . import partitioned as pt
 from .coupling_layout import ABSOLUTE_TOLERANCE, MAX_STEP, RELATIVE_TOLERANCE
 from .rates import check_unit_kinds, flat_arrays, joint_muscle_torques
 from .techniques import VELOCITY_SCALE
@@ -74,7 +75,7 @@ FIRST_STEP = 1e-4
 _SAFETY, _SHRINK_MIN, _GROW_MAX = 0.9, 0.2, 5.0
 #: PI exponents for an error estimate of local order k = 2 (Gustafsson: 0.7/k and 0.4/k).
 _ALPHA, _BETA = 0.35, 0.2
-_GAMMA = fs._SDIRK2_A[0, 0]
+_GAMMA = pt._SDIRK2_A[0, 0]
 
 
 @njit(cache=True, error_model="numpy")
@@ -96,7 +97,7 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
     t_end = n_out * h_out
     y = out[0].copy()
     y1 = out[0].copy()
-    b = np.empty((fs._SCRATCH_ROWS, size))
+    b = np.empty((pt._SCRATCH_ROWS, size))
     work = np.empty(body_work_size(n, seg))
     jacobian = np.empty(body_jacobian_size(n))
     body_arrays = (n, seg, joints, work, jacobian)
@@ -112,7 +113,7 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
     omega_start = np.empty(nu)  # the units' CE velocities at this step's start and the last's
     omega_prev = np.empty(nu)
     for u in range(nu):
-        b[fs._OMEGA, u] = np.nan
+        b[pt._OMEGA, u] = np.nan
     joint_muscle_torques(y, y, units, nu, torque_prev, n)
     stats[fs.ROWS] = 1
     stats[fs.SMALLEST_STEP] = math.inf
@@ -133,38 +134,38 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
         h = min(h, h_max)
         if t + h * 1.01 >= t_end:
             h = t_end - t
-        fs._muscles_at_step_start(muscles, t, y, h, b, stats, dynamics)
+        pt._muscles_at_step_start(muscles, t, y, h, b, stats, dynamics)
         for u in range(nu):  # the first stage's seed: ω extrapolated to t + γh
-            omega_start[u] = b[fs._OMEGA, u]
+            omega_start[u] = b[pt._OMEGA, u]
             if h_prev > 0.0:
-                b[fs._OMEGA, u] += (omega_start[u] - omega_prev[u]) * _GAMMA * h / h_prev
+                b[pt._OMEGA, u] += (omega_start[u] - omega_prev[u]) * _GAMMA * h / h_prev
         for j in range(n):
-            b[fs._TORQUE_SLOPE, j] = (b[fs._TORQUE0, j] - torque_prev[j]) * h / h_prev \
+            b[pt._TORQUE_SLOPE, j] = (b[pt._TORQUE0, j] - torque_prev[j]) * h / h_prev \
                 if h_prev > 0.0 else 0.0
-            b[fs._Q_SLOPE, j] = 0.0
+            b[pt._Q_SLOPE, j] = 0.0
         for i in range(size):
             y1[i] = y[i]
-        fs._body_ros2(body_arrays, t, y, h, b, y1, stats, body)
+        pt._body_ros2(body_arrays, t, y, h, b, y1, stats, body)
         for j in range(n):
-            b[fs._Q_SLOPE, j] = y1[j] - y[j]
-        fs._count_muscle_work(stats, fs._muscle_part(muscles, t, y, h, 1, b, y1, dynamics,
+            b[pt._Q_SLOPE, j] = y1[j] - y[j]
+        pt._count_muscle_work(stats, pt._muscle_part(muscles, t, y, h, 1, b, y1, dynamics,
                                                      None, True))
         stats[fs.NFEV_BODY] += 2
         stats[fs.SWEEPS] += 1
-        joint_muscle_torques(y1, y1, units, nu, b[fs._TORQUE], n)
+        joint_muscle_torques(y1, y1, units, nu, b[pt._TORQUE], n)
         _coupling_acceleration(n, seg, work, b, body)
         err = 0.0
         for i in range(size):
             scale = atol + rtol * abs(y1[i])
             if i < n:
-                e = abs(0.5 * h * (b[fs._K1, i] + b[fs._K2, i])) \
-                    + h * h / 6.0 * abs(b[fs._Q, i])
+                e = abs(0.5 * h * (b[pt._K1, i] + b[pt._K2, i])) \
+                    + h * h / 6.0 * abs(b[pt._Q, i])
             elif i < first:
-                e = abs(0.5 * h * (b[fs._K1, i] + b[fs._K2, i])) \
-                    + 0.5 * h * abs(b[fs._Q, i - n])
+                e = abs(0.5 * h * (b[pt._K1, i] + b[pt._K2, i])) \
+                    + 0.5 * h * abs(b[pt._Q, i - n])
                 scale *= VELOCITY_SCALE
             else:
-                e = abs(_GAMMA * h * (b[fs._K2, i] - b[fs._K1, i]))
+                e = abs(_GAMMA * h * (b[pt._K2, i] - b[pt._K1, i]))
             err = max(err, e / scale)
         if not err <= 1.0:  # (NaN too)
             shrink = _SAFETY * err ** -0.5 if math.isfinite(err) else _SHRINK_MIN
@@ -196,7 +197,7 @@ def error_controlled_partitioned(system, h_out, n_out, control, out, stats, body
                 stats[fs.EVENT_TIMES + k] = t + crossing * h
             stats[fs.EVENTS] = k + 1
         for j in range(n):
-            torque_prev[j] = b[fs._TORQUE0, j]
+            torque_prev[j] = b[pt._TORQUE0, j]
         for u in range(nu):
             omega_prev[u] = omega_start[u]
         for i in range(size):
@@ -236,30 +237,30 @@ def _coupling_acceleration(n, seg, work, b, body):
     absolute angles φ: the joint torques enter as Q_k = τ_k − Σ_children τ_c, and
     q̈_k = φ̈_k − φ̈_parent. One segment on a pivot: δτ/I."""
     for j in range(n):
-        b[fs._Q, j] = b[fs._TORQUE0, j] + b[fs._TORQUE_SLOPE, j] - b[fs._TORQUE, j]
+        b[pt._Q, j] = b[pt._TORQUE0, j] + b[pt._TORQUE_SLOPE, j] - b[pt._TORQUE, j]
     if body is None:
-        b[fs._Q, 0] /= seg[0, SEG_INERTIA_COLUMN]
+        b[pt._Q, 0] /= seg[0, SEG_INERTIA_COLUMN]
         return
     nb = n - int(seg[0, SEG_COUNT_COLUMN])
     for k in range(n - nb):  # Q_parent −= τ_k (parents come first)
         p = int(seg[k, SEG_PARENT_COLUMN])
         if p >= 0:
-            b[fs._Q, nb + p] -= b[fs._TORQUE0, nb + k] + b[fs._TORQUE_SLOPE, nb + k] \
-                - b[fs._TORQUE, nb + k]
+            b[pt._Q, nb + p] -= b[pt._TORQUE0, nb + k] + b[pt._TORQUE_SLOPE, nb + k] \
+                - b[pt._TORQUE, nb + k]
     for i in range(n):  # L·z = Q, then D·Lᵀ·x = z
-        v = b[fs._Q, i]
+        v = b[pt._Q, i]
         for k in range(i):
-            v -= work[i * n + k] * b[fs._Q, k]
-        b[fs._Q, i] = v
+            v -= work[i * n + k] * b[pt._Q, k]
+        b[pt._Q, i] = v
     for i in range(n - 1, -1, -1):
-        v = b[fs._Q, i] / work[i * n + i]
+        v = b[pt._Q, i] / work[i * n + i]
         for k in range(i + 1, n):
-            v -= work[k * n + i] * b[fs._Q, k]
-        b[fs._Q, i] = v
+            v -= work[k * n + i] * b[pt._Q, k]
+        b[pt._Q, i] = v
     for k in range(n - nb - 1, 0, -1):  # q̈_k = φ̈_k − φ̈_parent (children first)
         p = int(seg[k, SEG_PARENT_COLUMN])
         if p >= 0:
-            b[fs._Q, nb + k] -= b[fs._Q, nb + p]
+            b[pt._Q, nb + k] -= b[pt._Q, nb + p]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -276,5 +277,5 @@ def _interpolate(y, y1, b, s, h, n, first, size, row):
         row[n + j] = (6.0 * s2 - 6.0 * s) * (q0 - q1) / h + (3.0 * s2 - 4.0 * s + 1.0) * v0 \
             + (3.0 * s2 - 2.0 * s) * v1
     for i in range(first, size):
-        slope = h * b[fs._RATE, i]
+        slope = h * b[pt._RATE, i]
         row[i] = y[i] + s * slope + s2 * (y1[i] - y[i] - slope)

@@ -219,7 +219,7 @@ UNIT_IO_ROWS = 4
 @njit(cache=True, error_model="numpy", _nrt=False, forceinline=True)
 def state_rates(y, rates, unit_io, model, body, dynamics):
     """dy/dt of the whole state ``y`` into ``rates``: the right-hand side, written once for
-    the monolithic loop's stages (`fixed_step.rk4_monolithic`) and SciPy's solvers
+    the monolithic loop's stages (`monolithic.rk4_monolithic`) and SciPy's solvers
     (`compiled_derivative`): the joint torques of the units' SE torques, each unit's rates
     (`unit_rates`), the body's accelerations.
 

@@ -1,7 +1,7 @@
 """The choice of a run's step loop: what the loop is made of (`StepKinds`), made from the
-packed model and exchange, and `run_step_loop`, which runs the fixed-step loops of
-`fixed_step` or the error-controlled loop of `error_control` from Python and from compiled
-callers (the population kernels) alike."""
+packed model and exchange, and `run_step_loop`, which runs the loop of its technique
+(`monolithic`, `partitioned` or `error_control`) from Python and from compiled callers (the
+population kernels) alike."""
 
 from __future__ import annotations
 
@@ -22,7 +22,8 @@ from .coupling_layout import (
     SDIRK2,
 )
 from .error_control import error_controlled_partitioned
-from .fixed_step import monolithic_scratch_size, rk4_monolithic, rk4_partitioned
+from .monolithic import monolithic_scratch_size, rk4_monolithic
+from .partitioned import rk4_partitioned
 
 
 class StepKinds(NamedTuple):

@@ -7,10 +7,10 @@ for which the order conditions up to p hold (`ButcherTableau.order_defects`); it
 function R(z) = 1 + z·bᵀ(I − zA)⁻¹·1 gives the linear stability limits the solvers' guards
 use (`ButcherTableau.real_stability_limit`).
 
-The compiled step loops (`torquesim.solvers.fixed_step`) read their coefficients here:
-classical RK4 for the body, the monolithic state and explicit muscles; the two-stage L-stable
-SDIRK2 for the implicit muscles (IMEX); the Rosenbrock method ROS2 of the implicit body part
-(its γ; `ros2_amplification`). The registry of techniques
+The compiled step loops (`torquesim.solvers.monolithic`, `torquesim.solvers.partitioned`)
+read their coefficients here: classical RK4 for the body, the monolithic state and explicit
+muscles; the two-stage L-stable SDIRK2 for the implicit muscles (IMEX); the Rosenbrock method
+ROS2 of the implicit body part (its γ; `ros2_amplification`). The registry of techniques
 (`torquesim.solvers.techniques`) takes its declared orders from them.
 """
 
@@ -126,7 +126,7 @@ SDIRK2 = ButcherTableau("L-stable SDIRK2", ((_GAMMA, 0.0), (1.0 - _GAMMA, _GAMMA
 
 #: γ of ROS2, the two-stage Rosenbrock W-method of order 2 of Verwer, Spee, Blom and
 #: Hundsdorfer (1999, SIAM J Sci Comput 20:1456) that the implicit body part runs
-#: (`torquesim.solvers.fixed_step._body_ros2`): (I − γhJ)·k1 = f(y),
+#: (`torquesim.solvers.partitioned._body_ros2`): (I − γhJ)·k1 = f(y),
 #: (I − γhJ)·k2 = f(y + h·k1) − 2·k1, y_new = y + h·(3/2·k1 + 1/2·k2). γ = 1 + 1/√2 makes it
 #: L-stable when J is the exact Jacobian.
 ROS2_GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
