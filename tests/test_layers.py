@@ -133,3 +133,30 @@ def test_no_module_imports_run_in_a_circle():
         if not state.get(start):
             visit(start, [start])
     assert not cycles, "import circles: " + "; ".join(" -> ".join(c) for c in cycles)
+
+
+#: The compiled step loops, one module a technique, and what they share.
+STEP_LOOPS = ("solvers/fixed_step.py", "solvers/monolithic.py", "solvers/partitioned.py",
+              "solvers/error_control.py", "solvers/step_loop.py")
+#: The modules of a unit kind's equations and packed row, and a unit kind's own test.
+UNIT_KIND_MODULES = {"torquesim.model.activation", "torquesim.model.torque_generator",
+                     "torquesim.model.unit_row"}
+UNIT_KIND_NAMES = {"has_activation_state"}
+
+
+@pytest.mark.parametrize("loop", STEP_LOOPS)
+def test_the_step_loops_know_no_unit_kind(loop):
+    """The loops step the units through the units' terms only (`rates.unit_rates`,
+    `sdirk.unit_implicit_stage`, which write all of a unit's rates): they import nothing from
+    the modules of a unit's equations and packed row, nor a test of a unit's kind, so a unit
+    kind with states of its own is added without editing a loop."""
+    path = PACKAGE / loop
+    package = _module_name(path).rsplit(".", 1)[0]
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom):
+            base = package.split(".")[: len(package.split(".")) - node.level + 1]
+            module = ".".join(base + ([node.module] if node.module else [])) \
+                if node.level else node.module
+            names = {alias.name for alias in node.names}
+            assert module not in UNIT_KIND_MODULES, f"{loop} imports {module}"
+            assert not names & UNIT_KIND_NAMES, f"{loop} imports {names & UNIT_KIND_NAMES}"

@@ -95,3 +95,30 @@ def test_public_names_are_the_functions_whatever_was_imported_first():
     subprocess.run([sys.executable, "-c", code], check=True)
     light = "import torquesim.cli, sys; assert 'numba' not in sys.modules, 'numba loaded'"
     subprocess.run([sys.executable, "-c", light], check=True)
+
+
+def test_no_technique_is_named_in_a_comparison_outside_the_registry():
+    """Technique identity lives in the registry (`solvers/techniques.py`): no other module
+    compares a method or a technique with a registered name written out (``method ==
+    "imex"``, ``name in ("Radau", ...)``); they read the registry's lists and constants."""
+    import ast
+    from pathlib import Path
+
+    from torquesim.solvers.techniques import SCIPY_METHODS
+
+    names = {t.name for t in TECHNIQUES} | {t.method for t in TECHNIQUES} | set(METHODS) \
+        | set(SCIPY_METHODS)
+    package = Path(ts.__file__).parent
+    found = []
+    for path in sorted(package.rglob("*.py")):
+        if path.name == "techniques.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.Compare):
+                continue
+            for side in (node.left, *node.comparators):
+                values = side.elts if isinstance(side, (ast.Tuple, ast.List, ast.Set)) \
+                    else [side]
+                if any(isinstance(v, ast.Constant) and v.value in names for v in values):
+                    found.append(f"{path.relative_to(package)}:{node.lineno}")
+    assert not found, found

@@ -28,6 +28,7 @@ from .techniques import (
     MIN_CONTROL_ATOL,
     REFERENCE,
     SCIPY_METHODS,
+    STIFF_SCIPY_METHODS,
     default_coupling,
     explicit_muscles,
     method_technique,
@@ -558,7 +559,7 @@ def _with_tighter_estimate(result, model, packed, y0, method, name, tolerance):
     estimate = float(np.max(np.abs(result.q[:n] - tight.q[:n]))) \
         if tight.success else math.inf
     how = f"against rtol and atol {TIGHTER:g}x tighter"
-    explicit = "" if name in ("Radau", "BDF", "LSODA") else \
+    explicit = "" if name in STIFF_SCIPY_METHODS else \
         " (an explicit solver: on stiff units or contacts use scipy:Radau or scipy:BDF)"
     return _with_estimate(result, estimate, tolerance, how,
                           f"use smaller rtol and atol{explicit}, or method 'reference'",

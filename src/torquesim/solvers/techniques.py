@@ -16,6 +16,8 @@ from .tableaus import RK4, ROS2_ORDER, SDIRK2
 #: SciPy solvers (``scipy.integrate`` classes) usable on the whole system (``scipy:NAME``);
 #: ``reference`` is Radau.
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
+#: Those of them fit for stiff problems (implicit, or LSODA switching to BDF).
+STIFF_SCIPY_METHODS = ("Radau", "BDF", "LSODA")
 
 
 @dataclass(frozen=True)
@@ -66,6 +68,8 @@ class Technique:
 
 #: The ``method`` of the reference solution: SciPy's Radau at tight tolerances.
 REFERENCE = "reference"
+#: The name of technique 1 with its default coupling (Jacobi, zero-order hold).
+PARTITIONED = "partitioned"
 
 
 def scipy_solver(method: str) -> str | None:
@@ -80,7 +84,7 @@ _EXPLICIT = "body RK4 and muscles RK4, each on its own, exchanging"
 TECHNIQUES: tuple[Technique, ...] = (
     Technique("monolithic", "monolithic", None,
               "one state vector (q, q̇, θ_cc), classical RK4", RK4.order, headline=True),
-    Technique("partitioned", "partitioned", Coupling(),
+    Technique(PARTITIONED, PARTITIONED, Coupling(),
               f"{_EXPLICIT} at step starts (Jacobi, zero-order hold)", 1, headline=True),
     Technique("partitioned[body-first]", "partitioned", Coupling(order="body-first"),
               f"{_EXPLICIT}: body first, muscles see its new angle (Gauss-Seidel)", 1),

@@ -11,6 +11,7 @@ import numpy as np
 from ..io.html_page import image, page, settings_table, table
 from ..plots import figure_png
 from ..solvers.fixed_step import RK4_STABILITY_LIMIT
+from ..solvers.techniques import PARTITIONED
 from .compare import (
     ACCURACY_TARGETS_DEG,
     STABLE_ERROR_DEG,
@@ -66,7 +67,7 @@ def _loglog_by_technique(rows, x_key, y_key, *, label, xlabel, ylabel, title, li
             continue
         x, y, flagged = (np.array(v) for v in zip(*pts, strict=True))
         (line,) = ax.loglog(x * 1e3, y, label=label(name), color=f"C{i % 10}",
-                            zorder=3 + (name == "partitioned"), **style)
+                            zorder=3 + (name == PARTITIONED), **style)
         if flagged.any():
             flagged_any = True
             ax.loglog(x[flagged] * 1e3, y[flagged], ls="none", marker=style["marker"],
