@@ -169,3 +169,28 @@ def test_the_readme_names_every_dependency_and_the_docs_only_versions_that_exist
     for page in [ROOT / "README.md", *(ROOT / "docs").glob("*.md")]:
         for found in re.findall(r"torquesim ≥ ([0-9.]+)", page.read_text()):
             assert parts(found) <= parts(version)[:len(parts(found))], (page.name, found)
+
+
+def test_the_extending_page_names_files_and_functions_that_exist():
+    """docs/extending.md names the files and functions a new element goes into: each
+    ``path.py`` (below src/torquesim, or tests/) exists, and each ``path.py: name`` (and the
+    names listed after it) is defined there, so the page cannot go stale silently."""
+    import ast
+    import re
+
+    page = (ROOT / "docs" / "extending.md").read_text()
+    package = ROOT / "src" / "torquesim"
+    cited = re.findall(r"`((?:tests|[a-z_]+)/[a-z_/]+\.py|plots\.py)(?:: (\w+))?`"
+                       r"((?:, `\w+`)*)", page)
+    assert len(cited) > 20
+    for path, name, more in cited:
+        file = ROOT / path if path.startswith("tests/") else package / path
+        assert file.exists(), path
+        names = ([name] if name else []) + re.findall(r"`(\w+)`", more)
+        if names:
+            tree = ast.parse(file.read_text())
+            defined = {n.name for n in ast.walk(tree)
+                       if isinstance(n, ast.FunctionDef | ast.ClassDef)}
+            defined |= {t.id for n in ast.walk(tree) if isinstance(n, ast.Assign)
+                        for t in n.targets if isinstance(t, ast.Name)}
+            assert set(names) <= defined, (path, set(names) - defined)
