@@ -28,6 +28,7 @@ PAGES = {
     "docs/batch.md": {"batch-benchmark"},
     "docs/tutorial.md": {"cold-start"},
     "docs/concepts.md": {"techniques"},
+    "docs/model-files.md": {"model-fields"},
     "docs/presets.md": {"motion-elbow-curl", "motion-knee-extension", "motion-arm-raise",
                         "motion-squat-jump", "motion-countermovement-jump",
                         "motion-squat-jump-biarticular", "motion-drop-landing"},
@@ -55,6 +56,30 @@ def techniques_block() -> str:
     return ("Every technique torquesim knows, from its registry "
             "(`torquesim.solvers.techniques`; the order is the declared one, which the tests "
             "measure on two smooth cases):\n\n" + "\n".join(lines) + "\n")
+
+
+def fields_block() -> str:
+    """Every numeric field of a model file with its unit, meaning and allowed values, from the
+    classes' `Allowed` tables (the ones their range checks and the files' comments read):
+    cheap, so ``make_docs.py --check`` also checks that the page shows them as they are."""
+    from torquesim.model import activation, chain, contact
+    from torquesim.model.torque_generator import UNIT_FIELDS
+
+    tables = [("top level", chain.CHAIN_FIELDS), ("`[[segments]]`", chain.SEGMENT_FIELDS),
+              ("`loads`", chain.LOAD_FIELDS), ("`[[joints]]`", chain.JOINT_FIELDS),
+              ("`[[units]]`", {**UNIT_FIELDS, **chain.UNIT_GEOMETRY_FIELDS}),
+              ("`[units.activation]`", activation.PROFILE_FIELDS),
+              ("`ramps`", activation.RAMP_FIELDS),
+              ("`[units.activation_dynamics]`", activation.DYNAMICS_FIELDS),
+              ("`[[points]]`", contact.POINT_FIELDS), ("`[[contacts]]`", contact.CONTACT_FIELDS)]
+    lines = ["| in | key | unit | what | allowed |", "|---|---|---|---|---|"]
+    for where, table in tables:
+        for name, allowed in table.items():
+            lines.append(f"| {where} | `{name}` | {allowed.unit or '–'} | "
+                         f"{allowed.meaning or '–'} | {allowed.interval()} |")
+    return ("Every number of a model file, with its unit and the values allowed, from the "
+            "tables the range checks and the files' comments read "
+            "(`torquesim.model.fields.Allowed`):\n\n" + "\n".join(lines) + "\n")
 
 
 def _swing(time, angle) -> str:

@@ -42,6 +42,7 @@ from docblocks import (  # noqa: E402  (scripts/)
     ROOT,
     contact_blocks,
     current_block,
+    fields_block,
     missing_blocks,
     preset_motion_blocks,
     techniques_block,
@@ -301,7 +302,8 @@ def main() -> None:
                         help="only check that every docs page has its generated blocks (and "
                              "that the techniques table is the registry's)")
     parser.add_argument("--techniques", action="store_true",
-                        help="only rewrite the techniques table of docs/concepts.md")
+                        help="only rewrite the techniques table of docs/concepts.md and the "
+                             "fields table of docs/model-files.md")
     parser.add_argument("--jump", action="store_true",
                         help="only the study on the squat jump")
     parser.add_argument("--landing", action="store_true",
@@ -321,6 +323,11 @@ def main() -> None:
             sys.exit("docs/concepts.md: the techniques table differs from the registry; run "
                      "python scripts/make_docs.py --techniques")
         write_blocks("docs/concepts.md", {"techniques": techniques_block()})
+    if current_block("docs/model-files.md", "model-fields") != fields_block():
+        if args.check:
+            sys.exit("docs/model-files.md: the fields table differs from the model's tables; "
+                     "run python scripts/make_docs.py --techniques")
+        write_blocks("docs/model-files.md", {"model-fields": fields_block()})
     if args.techniques:
         return
     motions = preset_motion_blocks()

@@ -104,10 +104,11 @@ def test_the_study_page_holds_its_generated_blocks():
     by ``make_docs.py --check``, which CI runs beside the suite (.ci/run): here they cost 19 s
     of every run of the suite."""
     sys.path.insert(0, str(ROOT / "scripts"))
-    from docblocks import current_block, missing_blocks, techniques_block
+    from docblocks import current_block, fields_block, missing_blocks, techniques_block
 
     assert missing_blocks() == []
     assert current_block("docs/concepts.md", "techniques") == techniques_block()
+    assert current_block("docs/model-files.md", "model-fields") == fields_block()
     assert "python scripts/make_docs.py --check" in (ROOT / ".ci" / "run").read_text()
 
 
@@ -194,3 +195,29 @@ def test_the_extending_page_names_files_and_functions_that_exist():
             defined |= {t.id for n in ast.walk(tree) if isinstance(n, ast.Assign)
                         for t in n.targets if isinstance(t, ast.Name)}
             assert set(names) <= defined, (path, set(names) - defined)
+
+
+def test_the_model_file_page_s_examples_state_the_checked_bounds():
+    """The example files on docs/model-files.md write a field's bounds in its comment as the
+    model file does: each interval written after a key is that key's, from the tables the
+    range checks read (a key of several tables, such as ``distance``, may match any)."""
+    import re
+
+    from torquesim.model import activation, chain, contact
+    from torquesim.model.torque_generator import UNIT_FIELDS
+
+    allowed: dict[str, set[str]] = {}
+    for table in (chain.CHAIN_FIELDS, chain.SEGMENT_FIELDS, chain.LOAD_FIELDS,
+                  chain.JOINT_FIELDS, chain.UNIT_GEOMETRY_FIELDS, UNIT_FIELDS,
+                  activation.PROFILE_FIELDS, activation.RAMP_FIELDS, activation.DYNAMICS_FIELDS,
+                  contact.POINT_FIELDS, contact.CONTACT_FIELDS):
+        for name, values in table.items():
+            allowed.setdefault(name, set()).add(values.interval(plain=True))
+    page = (ROOT / "docs" / "model-files.md").read_text()
+    stated = [(key, interval) for block in re.findall(r"```toml\n(.*?)```", page, re.S)
+              for key, comment in re.findall(r"^(\w+) = [^#\n]*#([^\n]*)", block, re.M)
+              for interval in re.findall(r"[\[(]-?(?:[\d.]+(?:e\d+)?|2?pi|inf), "
+                                         r"-?(?:[\d.]+(?:e\d+)?|2?pi|inf)[\])]", comment)]
+    assert len(stated) >= 8
+    for key, interval in stated:
+        assert interval in allowed.get(key, ()), (key, interval, allowed.get(key))

@@ -76,3 +76,49 @@ def test_zero_dumbbell_gives_the_bare_forearm():
                                                           dumbbell_inertia=0.0))
     assert m.body.elbow_inertia == pytest.approx(0.0763)
     assert np.isfinite(m.initial_state().flexor_level)
+
+
+def test_every_field_s_bounds_are_written_once():
+    """Each numeric field of a model class has its allowed values in one table (`Allowed`):
+    the class's docstring says the same bounds (PointLoad's said [0, inf) where the check held
+    1000 kg), the model file's comment is made from it, and the check refuses a value just
+    beyond either end and an open end itself."""
+    import dataclasses
+    import math
+    import re
+
+    from torquesim.io.model_file import FIELD_DOCS
+    from torquesim.model import activation, chain, contact
+
+    load = chain.PointLoad("dumbbell", 5.0, 0.3, 0.01)
+    segment = chain.Segment("thigh", 8.0, 0.2, 0.5, 0.4)
+    joint = chain.Joint("knee", 0.5, endstop_lower_angle=-0.1, endstop_upper_angle=2.5)
+    arm = ts.load_model("builtin:squat-jump-biarticular")
+    two_joint = next(u for u in arm.units if u.second_joint is not None)
+    cases = [(load, chain.LOAD_FIELDS), (segment, chain.SEGMENT_FIELDS),
+             (joint, chain.JOINT_FIELDS), (two_joint, chain.UNIT_GEOMETRY_FIELDS),
+             (arm, chain.CHAIN_FIELDS), (arm.points[0], contact.POINT_FIELDS),
+             (arm.contacts[0], contact.CONTACT_FIELDS),
+             (activation.Ramp(0.1, 0.2, 0.5), activation.RAMP_FIELDS),
+             (activation.ActivationProfile(0.3), activation.PROFILE_FIELDS),
+             (activation.ActivationDynamics(), activation.DYNAMICS_FIELDS)]
+    for owner, table in cases:
+        doc = " ".join(type(owner).__doc__.split())
+        values = {f.name: getattr(owner, f.name) for f in dataclasses.fields(owner)}
+        assert set(table) <= set(values), type(owner)
+        for name, allowed in table.items():
+            said = re.search(rf"\b{name} : (.*?)(?= \w+ : |$)", doc)
+            assert said and f"Bounds {allowed.interval()}" in said.group(1), (type(owner), name)
+            if owner is not load and table is not activation.RAMP_FIELDS \
+                    and table is not activation.PROFILE_FIELDS:
+                assert FIELD_DOCS[name] == allowed.text(), name
+            low, high = allowed.limits(values)
+            for bound, is_open, outward in ((low, allowed.low_open, -1),
+                                            (high, allowed.high_open, 1)):
+                if math.isinf(bound):
+                    continue
+                beyond = bound + outward * 1e-9 * max(1.0, abs(bound))
+                for bad in ([beyond, bound] if is_open else [beyond]):
+                    with pytest.raises(ts.ModelError) as info:
+                        dataclasses.replace(owner, **{name: bad})
+                    assert name in str(info.value), (name, str(info.value))

@@ -47,53 +47,41 @@ import tomllib
 from pathlib import Path
 
 from ..errors import ModelError
-from ..model.activation import ActivationDynamics, ActivationProfile, Ramp
+from ..model.activation import DYNAMICS_FIELDS, ActivationDynamics, ActivationProfile, Ramp
 from ..model.body import BodyParameters
+from ..model.chain import (
+    CHAIN_FIELDS,
+    JOINT_FIELDS,
+    POSITIVE_MOTIONS,
+    SEGMENT_FIELDS,
+    UNIT_GEOMETRY_FIELDS,
+    ChainModel,
+    Joint,
+    PointLoad,
+    Segment,
+    Unit,
+)
 from ..model.chain import OPPOSITE_MOTIONS as OPPOSITE
-from ..model.chain import POSITIVE_MOTIONS, ChainModel, Joint, PointLoad, Segment, Unit
-from ..model.contact import GroundContact, Point
+from ..model.contact import CONTACT_FIELDS, POINT_FIELDS, GroundContact, Point
 from ..model.elbow import ElbowModel
-from ..model.torque_generator import UNIT_FIELDS, TorqueGeneratorUnit, allowed_text
+from ..model.torque_generator import UNIT_FIELDS, TorqueGeneratorUnit
 from .atomic import write_text_atomic
 
 EQUILIBRIUM = "equilibrium"
 DIRECTIONS = {"flexor": 1, "extensor": -1, 1: 1, -1: -1}
 
-#: One-line documentation written beside each key: unit and allowed range.
+#: One-line documentation written beside each key: unit, meaning and allowed range, made
+#: from each class's `Allowed` values (a point load's and a ramp's keys sit in inline
+#: tables, without comments), and for the keys that are not numbers.
 FIELD_DOCS = {
-    "duration": "s, simulated time. (0, 600]",
-    "gravity": "m/s^2. [0, 100]",
-    "base_angle": "rad, first joint's zero direction from hanging down. [-pi, pi]",
-    "mass": "kg. (0, 1000]",
-    "com_distance": "m, proximal joint to centre of mass. [0, 10]",
-    "inertia_about_joint": "kg m^2, about the proximal joint, loads excluded. (0, 1e4]",
-    "length": "m, proximal joint to the next joint. [0, 10]",
-    "initial_angle": "rad, 0 = straight/hanging, positive = the joint's positive motion "
-                     "(default flexion). [-pi, pi]",
-    "initial_speed": "rad/s, joint angular velocity at t = 0 (0 = at rest). [-100, 100]",
-    "endstop_torque": "N m, passive end-stop scale k_p (0 = none). [0, 1e5]",
-    "endstop_angle_scale": "rad, end-stop angular scale s_p. (0, inf)",
-    "endstop_lower_angle": "rad, q_lo. [-pi, 2pi]",
-    "endstop_upper_angle": "rad, q_hi (> q_lo). [-pi, 2pi]",
     "coordinate": "output column / OpenSim coordinate name",
     "positive": "what a growing angle is: " + ", ".join(POSITIVE_MOTIONS),
-    "activation_time": "s, tau_act of da/dt (Thelen 2003: 0.015). (0, 1]",
     "base": "fixed (a pivot at the origin) or free (stands on its contacts)",
-    "landing_speed": "m/s, a landing: starts at touchdown, moving down at this speed "
-                     "(free base; 0 = standing). [0, 10]",
-    "parent_distance": "m, where its joint sits along the parent's axis. [-10, 10]",
-    "distance": "m, along the segment axis from its proximal joint",
-    "offset": "m, perpendicular to the axis (+: forwards when hanging)",
-    "stiffness": "N/m^n, k of k*depth^n*(1 + c*depth_rate). (0, 1e9]",
-    "exponent": "n (1.5: Hertz). [1, 3]",
-    "damping": "s/m, c (Hunt-Crossley). [0, 100]",
-    "friction": "mu of the regularised Coulomb friction. [0, 5]",
-    "slip_speed": "m/s, v_s of the friction regularisation. [0.001, 1]",
-    "deactivation_time": "s, tau_deact of da/dt (Thelen 2003: 0.050). (0, 1]",
     "second_joint": "a two-joint unit: the adjacent joint it also spans",
-    "second_arm": "its moment arm there relative to the one at joint, signed (+: towards "
-                  "that joint's positive way). [-2, 2]",
-    **{name: allowed_text(name) for name in UNIT_FIELDS},
+    **{name: allowed.text() for table in (CHAIN_FIELDS, SEGMENT_FIELDS, JOINT_FIELDS,
+                                          UNIT_GEOMETRY_FIELDS, UNIT_FIELDS, DYNAMICS_FIELDS,
+                                          POINT_FIELDS, CONTACT_FIELDS)
+       for name, allowed in table.items()},
 }
 SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads",
                 "parent", "parent_distance")

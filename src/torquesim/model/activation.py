@@ -16,8 +16,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ModelError, check_range
+from ..errors import ModelError
+from .fields import Allowed, check_fields
 from .jit import njit
+
+#: The allowed values of a ramp's numbers, of a profile's initial level (None: solved for
+#: rest) and of activation dynamics' time constants (`Allowed`).
+RAMP_FIELDS = {
+    "delay": Allowed("s", "from the end of the previous ramp", 0.0, math.inf, high_open=True),
+    "duration": Allowed("s", "", 0.0, math.inf, low_open=True, high_open=True),
+    "level": Allowed("", "activation reached at its end", 0.0, 1.0),
+}
+PROFILE_FIELDS = {"initial_level": Allowed("", "a_0", 0.0, 1.0, optional=True)}
+DYNAMICS_FIELDS = {
+    "activation_time": Allowed("s", "tau_act of da/dt (Thelen 2003: 0.015)", 0.0, 1.0,
+                               low_open=True),
+    "deactivation_time": Allowed("s", "tau_deact of da/dt (Thelen 2003: 0.050)", 0.0, 1.0,
+                                 low_open=True),
+}
 
 
 @dataclass(frozen=True)
@@ -40,9 +56,7 @@ class Ramp:
     level: float
 
     def __post_init__(self) -> None:
-        check_range("delay", self.delay, 0.0, unit="s")
-        check_range("duration", self.duration, 0.0, low_open=True, unit="s")
-        check_range("level", self.level, 0.0, 1.0)
+        check_fields(self, RAMP_FIELDS)
 
 
 @dataclass(frozen=True)
@@ -62,8 +76,7 @@ class ActivationProfile:
     ramps: tuple[Ramp, ...] = ()
 
     def __post_init__(self) -> None:
-        if self.initial_level is not None:
-            check_range("initial_level", self.initial_level, 0.0, 1.0)
+        check_fields(self, PROFILE_FIELDS)
         object.__setattr__(self, "ramps", tuple(self.ramps))
         for i, ramp in enumerate(self.ramps):
             if not isinstance(ramp, Ramp):
@@ -145,9 +158,7 @@ class ActivationDynamics:
     deactivation_time: float = 0.050
 
     def __post_init__(self) -> None:
-        check_range("activation_time", self.activation_time, 0.0, 1.0, low_open=True, unit="s")
-        check_range("deactivation_time", self.deactivation_time, 0.0, 1.0, low_open=True,
-                    unit="s")
+        check_fields(self, DYNAMICS_FIELDS)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

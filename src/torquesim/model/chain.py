@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ModelError, check_name, check_range
+from ..errors import ModelError, check_name
 from .activation import ActivationDynamics, ActivationProfile
 from .body import (
     ENDSTOP_HIGH,
@@ -60,6 +60,7 @@ from .contact import (
     GroundContact,
     Point,
 )
+from .fields import Allowed, check_fields
 from .state import UNIT_STATE_WIDTHS, StateLayout
 from .torque_generator import (
     ACTIVATION_FLOOR,
@@ -109,6 +110,49 @@ MAX_STANDING_SINK = 0.05
 #: overflow the mechanics (kg, m, kg·m²).
 MAX_MASS, MAX_LENGTH, MAX_INERTIA = 1000.0, 10.0, 1.0e4
 
+#: The allowed values of a point load's, a segment's and a joint's numbers, of a two-joint
+#: unit's arm and of the model's own numbers (`Allowed`).
+LOAD_FIELDS = {
+    "mass": Allowed("kg", "", 0.0, MAX_MASS),
+    "distance": Allowed("m", "from the segment's proximal joint along its axis", 0.0,
+                        MAX_LENGTH),
+    "inertia": Allowed("kg·m^2", "about its own centre", 0.0, MAX_INERTIA),
+}
+SEGMENT_FIELDS = {
+    "mass": Allowed("kg", "", 0.0, MAX_MASS, low_open=True),
+    "com_distance": Allowed("m", "proximal joint to centre of mass", 0.0, MAX_LENGTH),
+    "inertia_about_joint": Allowed("kg·m^2", "about the proximal joint, loads excluded", 0.0,
+                                   MAX_INERTIA, low_open=True),
+    "length": Allowed("m", "proximal joint to the next joint", 0.0, MAX_LENGTH),
+    "parent_distance": Allowed("m", "where its joint sits along the parent's axis",
+                               -MAX_LENGTH, MAX_LENGTH, optional=True),
+}
+JOINT_FIELDS = {
+    "initial_angle": Allowed("rad", "0 = straight/hanging, positive = the joint's positive "
+                             "motion (default flexion)", -math.pi, math.pi),
+    "initial_speed": Allowed("rad/s", "joint angular velocity at t = 0 (0 = at rest)", -100.0,
+                             100.0),
+    "endstop_torque": Allowed("N·m", "passive end-stop scale k_p (0 = none)", 0.0, 1e5),
+    "endstop_angle_scale": Allowed("rad", "end-stop angular scale s_p", 0.0, math.inf,
+                                   low_open=True, high_open=True),
+    "endstop_lower_angle": Allowed("rad", "q_lo", -math.pi, 2 * math.pi),
+    "endstop_upper_angle": Allowed("rad", "q_hi", (1.0, "endstop_lower_angle"), 2 * math.pi,
+                                   low_open=True),
+}
+UNIT_GEOMETRY_FIELDS = {
+    "second_arm": Allowed("", "its moment arm there relative to the one at joint, signed (+: "
+                          "towards that joint's positive way)", -MAX_SECOND_ARM,
+                          MAX_SECOND_ARM),
+}
+CHAIN_FIELDS = {
+    "gravity": Allowed("m/s^2", "", 0.0, 100.0),
+    "base_angle": Allowed("rad", "first joint's zero direction from hanging down", -math.pi,
+                          math.pi),
+    "duration": Allowed("s", "simulated time", 0.0, 600.0, low_open=True),
+    "landing_speed": Allowed("m/s", "a landing: starts at touchdown, moving down at this speed "
+                             "(free base; 0 = standing)", 0.0, 10.0),
+}
+
 
 @dataclass(frozen=True)
 class PointLoad:
@@ -118,11 +162,11 @@ class PointLoad:
     ----------
     name : str
     mass : float
-        kg. Bounds [0, inf).
+        kg. Bounds [0, 1e3].
     distance : float
-        From the segment's proximal joint along the segment axis, m. Bounds [0, inf).
+        From the segment's proximal joint along the segment axis, m. Bounds [0, 10].
     inertia : float
-        Its own moment of inertia about its own centre, kg·m². Default 0. Bounds [0, inf).
+        Its own moment of inertia about its own centre, kg·m². Default 0. Bounds [0, 1e4].
     """
 
     name: str
@@ -132,9 +176,7 @@ class PointLoad:
 
     def __post_init__(self) -> None:
         check_name("name", self.name)
-        check_range("mass", self.mass, 0.0, MAX_MASS, unit="kg")
-        check_range("distance", self.distance, 0.0, MAX_LENGTH, unit="m")
-        check_range("inertia", self.inertia, 0.0, MAX_INERTIA, unit="kg·m^2")
+        check_fields(self, LOAD_FIELDS)
 
 
 @dataclass(frozen=True)
@@ -145,14 +187,14 @@ class Segment:
     ----------
     name : str
     mass : float
-        kg. Bounds (0, inf).
+        kg. Bounds (0, 1e3].
     com_distance : float
-        Proximal joint → centre of mass, along the segment axis, m. Bounds [0, inf).
+        Proximal joint → centre of mass, along the segment axis, m. Bounds [0, 10].
     inertia_about_joint : float
         Moment of inertia about the proximal joint axis (not about the centre of mass), loads
-        excluded, kg·m². Bounds (0, inf); at least mass·com_distance² (parallel axes).
+        excluded, kg·m². Bounds (0, 1e4]; at least mass·com_distance² (parallel axes).
     length : float
-        Proximal joint → next joint, m (unused for the last segment). Bounds [0, inf).
+        Proximal joint → next joint, m (unused for the last segment). Bounds [0, 10].
     loads : tuple of PointLoad
     parent : str
         Name of the segment its proximal joint sits on; "" (default): the segment before it
@@ -174,14 +216,8 @@ class Segment:
 
     def __post_init__(self) -> None:
         check_name("name", self.name)
-        m = check_range("mass", self.mass, 0.0, MAX_MASS, low_open=True, unit="kg")
-        c = check_range("com_distance", self.com_distance, 0.0, MAX_LENGTH, unit="m")
-        inertia = check_range("inertia_about_joint", self.inertia_about_joint, 0.0, MAX_INERTIA,
-                              low_open=True, unit="kg·m^2")
-        check_range("length", self.length, 0.0, MAX_LENGTH, unit="m")
-        if self.parent_distance is not None:
-            check_range("parent_distance", self.parent_distance, -MAX_LENGTH, MAX_LENGTH,
-                        unit="m")
+        values = check_fields(self, SEGMENT_FIELDS)
+        m, c, inertia = values["mass"], values["com_distance"], values["inertia_about_joint"]
         if not isinstance(self.parent, str):
             raise ModelError("parent", "must be a segment name or \"\"")
         if inertia < m * c * c * (1.0 - 1e-12):
@@ -248,14 +284,15 @@ class Joint:
     name : str
     initial_angle : float
         q at t = 0, rad (0 = straight in line with the previous segment; positive: see
-        ``positive``).
-        Bounds [-π, π].
+        ``positive``). Bounds [−π, π].
     endstop_torque : float
-        k_p, N·m. Default 1.0. Bounds [0, inf); 0 = no end stops.
+        k_p, N·m. Default 1.0. Bounds [0, 1e5]; 0 = no end stops.
     endstop_angle_scale : float
         s_p, rad. Default 0.05. Bounds (0, inf).
-    endstop_lower_angle, endstop_upper_angle : float
-        q_lo < q_hi, rad. Defaults 0 and 2.618 (150°). Bounds [-π, 2π].
+    endstop_lower_angle : float
+        q_lo, rad. Default 0. Bounds [−π, 2π].
+    endstop_upper_angle : float
+        q_hi, rad. Default 2.618 (150°). Bounds (endstop_lower_angle, 2π].
     coordinate : str
         Name of the angle's output column, as an OpenSim coordinate. Default
         ``<name>_flexion``.
@@ -286,18 +323,7 @@ class Joint:
         if self.positive not in POSITIVE_MOTIONS:
             raise ModelError("positive", f"{self.positive!r}; allowed: "
                              + ", ".join(POSITIVE_MOTIONS))
-        check_range("initial_angle", self.initial_angle, -math.pi, math.pi, unit="rad")
-        check_range("initial_speed", self.initial_speed, -100.0, 100.0, unit="rad/s")
-        check_range("endstop_torque", self.endstop_torque, 0.0, 1e5, unit="N·m")
-        check_range("endstop_angle_scale", self.endstop_angle_scale, 0.0, low_open=True,
-                    unit="rad")
-        lo = check_range("endstop_lower_angle", self.endstop_lower_angle, -math.pi,
-                         2 * math.pi, unit="rad")
-        hi = check_range("endstop_upper_angle", self.endstop_upper_angle, -math.pi,
-                         2 * math.pi, unit="rad")
-        if hi <= lo:
-            raise ModelError("endstop_upper_angle",
-                             f"{hi!r} must exceed endstop_lower_angle = {lo!r} rad")
+        check_fields(self, JOINT_FIELDS)
         if not self.coordinate:
             object.__setattr__(self, "coordinate", f"{self.name}_flexion")
         check_name("coordinate", self.coordinate)
@@ -349,8 +375,8 @@ class Unit:
         also spans. None (default): it spans ``joint`` only.
     second_arm : float
         Its moment arm r at ``second_joint`` relative to the one at ``joint`` (signed: +
-        pulls towards the second joint's positive way), dimensionless, |r| ≤ 2. Its torque T
-        acts as δ·T at ``joint`` and r·T at ``second_joint``, and its SE stretch is
+        pulls towards the second joint's positive way), dimensionless. Bounds [-2, 2]. Its
+        torque T acts as δ·T at ``joint`` and r·T at ``second_joint``, and its SE stretch is
         s = δ·(θ_cc − ψ) with ψ = q_joint + δ·r·q_second the unit's angle (docs/model.md
         §7, two-joint units). 0 with no second joint.
     """
@@ -387,7 +413,7 @@ class Unit:
             if self.second_joint == self.joint:
                 raise ModelError("second_joint", f"{self.second_joint!r} is the unit's joint; "
                                  "allowed: another, adjacent joint")
-            check_range("second_arm", self.second_arm, -MAX_SECOND_ARM, MAX_SECOND_ARM)
+            check_fields(self, UNIT_GEOMETRY_FIELDS)
             object.__setattr__(self, "second_arm", float(self.second_arm))
 
     @property
@@ -441,12 +467,13 @@ class ChainModel:
     units : tuple of Unit
         At least one per joint (but a free base's).
     gravity : float
-        g, m/s², acting in the plane towards "hanging". Default 9.81. Bounds [0, inf).
+        g, m/s², acting in the plane towards "hanging". Default 9.81. Bounds [0, 100]; not 0
+        with ground contacts.
     base_angle : float
         Absolute angle of the first joint's zero direction from hanging straight down, rad,
         positive in its flexion direction. Default 0 (the elbow: forearm hanging at q = 0).
         −π/2 for a seated knee (thigh horizontal, straight knee = shank horizontal).
-        Bounds [-π, π].
+        Bounds [−π, π].
     duration : float
         Simulated time, s. Default 3.0. Bounds (0, 600].
     notes : tuple of str
@@ -487,14 +514,11 @@ class ChainModel:
             object.__setattr__(self, key, tuple(getattr(self, key)))
         if self.base not in BASES:
             raise ModelError("base", f"{self.base!r}; allowed: {', '.join(BASES)}")
-        check_range("gravity", self.gravity, 0.0, 100.0, unit="m/s^2")
+        check_fields(self, CHAIN_FIELDS)
         if self.contacts and self.gravity == 0.0:
             raise ModelError("gravity", "0 with ground contacts: no weight holds the body on "
                              "the ground (and the ground forces are read per body weight); "
                              "allowed (0, 100] m/s^2 for a model with [[contacts]]")
-        check_range("base_angle", self.base_angle, -math.pi, math.pi, unit="rad")
-        check_range("duration", self.duration, 0.0, 600.0, low_open=True, unit="s")
-        check_range("landing_speed", self.landing_speed, 0.0, 10.0, unit="m/s")
         if self.landing_speed and not self.contacts:
             raise ModelError("landing_speed", f"{self.landing_speed:g} m/s on a model without "
                              "ground contacts; allowed: 0, or a free base with [[contacts]]")

@@ -19,13 +19,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import check_name, check_range
+from ..errors import check_name
+from .fields import Allowed, check_fields
 from .jit import njit
 
 #: Columns of a packed contact row (`ChainModel.segment_array`, after the segment rows).
 (CONTACT_SEGMENT, CONTACT_DISTANCE, CONTACT_OFFSET, CONTACT_STIFFNESS, CONTACT_EXPONENT,
  CONTACT_DAMPING, CONTACT_FRICTION, CONTACT_SLIP_SPEED) = range(8)
 CONTACT_ROW_SIZE = 8
+
+#: The allowed values of a point's numbers and of a ground contact's (`Allowed`).
+POINT_FIELDS = {
+    "distance": Allowed("m", "along the segment axis from its proximal joint", -10.0, 10.0),
+    "offset": Allowed("m", "perpendicular to the axis (+: forwards when hanging)", -10.0, 10.0),
+}
+CONTACT_FIELDS = {
+    "stiffness": Allowed("N/m^n", "k of k*depth^n*(1 + c*depth_rate)", 0.0, 1e9,
+                         low_open=True),
+    "exponent": Allowed("", "n (1.5: Hertz)", 1.0, 3.0),
+    "damping": Allowed("s/m", "c (Hunt-Crossley)", 0.0, 100.0),
+    "friction": Allowed("", "mu of the regularised Coulomb friction", 0.0, 5.0),
+    "slip_speed": Allowed("m/s", "v_s of the friction regularisation", 1e-3, 1.0),
+}
 
 
 @dataclass(frozen=True)
@@ -52,8 +67,7 @@ class Point:
     def __post_init__(self) -> None:
         check_name("name", self.name)
         check_name("segment", self.segment)
-        check_range("distance", self.distance, -10.0, 10.0, unit="m")
-        check_range("offset", self.offset, -10.0, 10.0, unit="m")
+        check_fields(self, POINT_FIELDS)
 
 
 @dataclass(frozen=True)
@@ -94,11 +108,7 @@ class GroundContact:
     slip_speed: float = 0.1
 
     def __post_init__(self) -> None:
-        check_range("stiffness", self.stiffness, 0.0, 1e9, low_open=True, unit="N/m^n")
-        check_range("exponent", self.exponent, 1.0, 3.0)
-        check_range("damping", self.damping, 0.0, 100.0, unit="s/m")
-        check_range("friction", self.friction, 0.0, 5.0)
-        check_range("slip_speed", self.slip_speed, 1e-3, 1.0, unit="m/s")
+        check_fields(self, CONTACT_FIELDS)
         check_name("point", self.point)
 
 

@@ -22,7 +22,8 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-from ..errors import ModelError, check_range
+from ..errors import ModelError
+from .fields import Allowed, check_fields
 from .jit import njit
 
 # Layout of the packed unit parameter array.
@@ -37,64 +38,6 @@ UNIT_ARRAY_SIZE = 18
 TORQUE_ANGLE_FLOOR = 0.01
 #: Activation used in the CE equation is max(a, ACTIVATION_FLOOR) (docs/model.md §2.5).
 ACTIVATION_FLOOR = 0.01
-
-
-#: A bound that is another field's value times a factor: (factor, field name).
-Related = tuple[float, str]
-
-
-@dataclass(frozen=True)
-class Allowed:
-    """The allowed values of one unit parameter, written once: `TorqueGeneratorUnit`'s range
-    check, its docstring's "Bounds" (held to it by a test) and the model file's comment
-    (`allowed_text`) are made from it.
-
-    ``low`` and ``high`` are numbers, or (factor, field) for a bound that is another field's
-    value times the factor; ``low_open``/``high_open`` exclude an end. ``unit`` is the SI
-    unit as messages print it ("" for a ratio); ``meaning`` says what the field is, in plain
-    ASCII, as model files print it.
-    """
-
-    unit: str
-    meaning: str
-    low: float | Related
-    high: float | Related
-    low_open: bool = False
-    high_open: bool = False
-
-    @property
-    def related(self) -> bool:
-        """True when a bound is another field's value."""
-        return isinstance(self.low, tuple) or isinstance(self.high, tuple)
-
-    def limits(self, values: dict[str, float]) -> tuple[float, float]:
-        """(low, high) given the values of the fields checked before this one."""
-        return tuple(b[0] * values[b[1]] if isinstance(b, tuple) else b
-                     for b in (self.low, self.high))
-
-    def interval(self, plain: bool = False) -> str:
-        """The bounds as the docs write them, e.g. ``(0, 1e4]``, ``[−π, 2π]``,
-        ``(isometric_torque, 10 × isometric_torque]``; ``plain``: ASCII (``[-pi, 2pi]``),
-        for model files."""
-        low, high = _bound(self.low, plain), _bound(self.high, plain)
-        return f"{'(' if self.low_open else '['}{low}, {high}{')' if self.high_open else ']'}"
-
-
-def _bound(value: float | Related, plain: bool) -> str:
-    """One end of an interval in words: a field's name (times its factor), a multiple of π,
-    a power of ten from 1000 (``1e4``) or the number."""
-    minus = "-" if plain else "−"
-    if isinstance(value, tuple):
-        factor, name = value
-        if abs(factor) == 1.0:
-            return f"{minus if factor < 0 else ''}{name}"
-        return f"{factor:g}{' ' if plain else ' × '}{name}"
-    for k in (-1, 1, 2):
-        if value == k * math.pi:
-            return f"{minus if k < 0 else ''}{'2' if k == 2 else ''}{'pi' if plain else 'π'}"
-    if value >= 1e3 and math.log10(value) == int(math.log10(value)):
-        return f"1e{int(math.log10(value))}"
-    return f"{value:g}"
 
 
 #: Every field of `TorqueGeneratorUnit` with its allowed values, in the order they are
@@ -121,13 +64,6 @@ UNIT_FIELDS: dict[str, Allowed] = {
     "ce_damping": Allowed("N·m·s/rad", "CE parallel damping beta (Millard 2013; 0 = abstract)",
                           0.0, 1e4),
 }
-
-
-def allowed_text(name: str) -> str:
-    """The model file's comment for unit field ``name``: unit, meaning and bounds, ASCII."""
-    allowed = UNIT_FIELDS[name]
-    unit = allowed.unit.replace("·", " ")
-    return f"{unit + ', ' if unit else ''}{allowed.meaning}. {allowed.interval(plain=True)}"
 
 
 @dataclass(frozen=True)
@@ -179,14 +115,7 @@ class TorqueGeneratorUnit:
     ce_damping: float = 0.0
 
     def __post_init__(self) -> None:
-        values: dict[str, float] = {}
-        for name, allowed in UNIT_FIELDS.items():
-            low, high = allowed.limits(values)
-            values[name] = check_range(
-                name, getattr(self, name), low, high, low_open=allowed.low_open,
-                high_open=allowed.high_open,
-                unit=allowed.unit + (f", that is {allowed.interval()}" if allowed.related
-                                     else ""))
+        check_fields(self, UNIT_FIELDS)
         _check_monotone(self.to_array())
 
     @classmethod
