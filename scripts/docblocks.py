@@ -72,14 +72,14 @@ def fields_block() -> str:
               ("`ramps`", activation.RAMP_FIELDS),
               ("`[units.activation_dynamics]`", activation.DYNAMICS_FIELDS),
               ("`[[points]]`", contact.POINT_FIELDS), ("`[[contacts]]`", contact.CONTACT_FIELDS)]
-    lines = ["| in | key | unit | what | allowed |", "|---|---|---|---|---|"]
+    lines = ["Every number of a model file, with the values allowed and its unit, from the "
+             "tables the range checks and the files' comments read "
+             "(`torquesim.model.fields.Allowed`)."]
     for where, table in tables:
-        for name, allowed in table.items():
-            lines.append(f"| {where} | `{name}` | {allowed.unit or '–'} | "
-                         f"{allowed.meaning or '–'} | {allowed.interval()} |")
-    return ("Every number of a model file, with its unit and the values allowed, from the "
-            "tables the range checks and the files' comments read "
-            "(`torquesim.model.fields.Allowed`):\n\n" + "\n".join(lines) + "\n")
+        lines += ["", f"**{where}**", "", "| key | allowed | unit | what |", "|---|---|---|---|"]
+        lines += [f"| `{name}` | {allowed.interval()} | {allowed.unit or '–'} | "
+                  f"{allowed.meaning or '–'} |" for name, allowed in table.items()]
+    return "\n".join(lines) + "\n"
 
 
 def _swing(time, angle) -> str:
