@@ -1,6 +1,7 @@
 """One vocabulary of parameter paths (torquesim.model.paths) for compare --vary, batch sweep
 --vary, fit --bound/--freeze and the API."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -136,3 +137,45 @@ def test_the_fit_and_the_optimiser_read_ramp_names_as_paths(arm):
     with pytest.raises(ts.ModelError, match="no ramp 4") as info:
         space.select("elbow_flexor.ramp4", "free")
     assert info.value.field == "free"
+
+
+def test_every_numeric_field_is_a_path_and_no_text_field_is():
+    """Every field of the tables of allowed values is reachable by its path on the squat jump
+    with a two-joint unit (its value read back, a value inside its range set), and a text
+    field (a joint's ``positive``, a segment's ``parent``) is not a numeric path."""
+    from torquesim.model import activation, chain, contact
+    from torquesim.model.torque_generator import UNIT_FIELDS
+
+    jump = ts.load_model("builtin:squat-jump-biarticular")
+    jump = jump.replace(segments=(jump.segments[0], dataclasses.replace(
+        jump.segments[1], loads=(chain.PointLoad("weight", 1.0, 0.1),)), *jump.segments[2:]),
+        units=tuple(dataclasses.replace(u, activation_dynamics=activation.ActivationDynamics())
+                    for u in jump.units))
+    unit = next(u for u in jump.units if u.second_joint is not None)
+    segment, joint = jump.segments[1], jump.joints[1]
+    point = jump.contacts[0].point
+    owners = [(unit.name, UNIT_FIELDS), (unit.name, chain.UNIT_GEOMETRY_FIELDS),
+              (unit.name, activation.DYNAMICS_FIELDS),
+              (f"{unit.name}.ramp1", activation.RAMP_FIELDS),
+              (joint.name, chain.JOINT_FIELDS), (segment.name, chain.SEGMENT_FIELDS),
+              (f"{segment.name}.weight", chain.LOAD_FIELDS), (point, contact.POINT_FIELDS),
+              (point, contact.CONTACT_FIELDS),
+              (None, {k: v for k, v in chain.CHAIN_FIELDS.items() if k != "duration"})]
+    for owner, table in owners:
+        for name in table:
+            path = f"{owner}.{name}" if owner else name
+            value = get_parameter(jump, path)
+            assert value is None or isinstance(value, float), path
+    assert set_parameter(jump, f"{joint.name}.endstop_torque", 2.0).joints[1].endstop_torque \
+        == 2.0
+    # a parent distance left to the model reads as the parent's length, and can be set
+    arm = ts.load_model("builtin:arm-raise")
+    assert arm.segments[1].parent_distance is None
+    assert get_parameter(arm, "forearm_hand.parent_distance") == arm.segments[0].length
+    assert set_parameter(arm, "forearm_hand.parent_distance", 0.25).segments[1] \
+        .parent_distance == 0.25
+    with pytest.raises(ts.ModelError, match="hangs from the base"):
+        get_parameter(arm, "upper_arm.parent_distance")
+    for path in (f"{joint.name}.positive", f"{segment.name}.parent", f"{joint.name}.coordinate"):
+        with pytest.raises(ts.ModelError, match="not a numeric model field"):
+            get_parameter(jump, path)

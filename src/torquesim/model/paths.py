@@ -36,27 +36,31 @@ import re
 from dataclasses import fields, replace
 
 from ..errors import ModelError
-from .activation import ActivationDynamics, Ramp
+from . import activation, chain, contact
 from .chain import ChainModel
-from .contact import GroundContact, Point
 from .torque_generator import TorqueGeneratorUnit
 
-RAMP_FIELDS = tuple(f.name for f in fields(Ramp))
-DYNAMICS_FIELDS = tuple(f.name for f in fields(ActivationDynamics))
+#: The numbers each kind of path reaches, from the tables of allowed values (`Allowed`):
+#: a ramp's, activation dynamics', a joint's, a segment's, a point load's, a point's and the
+#: ground contact's at a point.
+RAMP_FIELDS = tuple(activation.RAMP_FIELDS)
+DYNAMICS_FIELDS = tuple(activation.DYNAMICS_FIELDS)
+JOINT_FIELDS = tuple(chain.JOINT_FIELDS)
+SEGMENT_FIELDS = tuple(chain.SEGMENT_FIELDS)
+LOAD_FIELDS = tuple(chain.LOAD_FIELDS)
+POINT_FIELDS = tuple(contact.POINT_FIELDS)
+CONTACT_FIELDS = tuple(contact.CONTACT_FIELDS)
 _RAMP = re.compile(r"ramp(\d+)")
-HELP = ("UNIT.FIELD, UNIT.initial_level, UNIT.second_arm (two-joint), "
-        "UNIT.rampN.delay|duration|level, "
-        "UNIT.activation_time|deactivation_time, JOINT.FIELD, SEGMENT.FIELD, "
-        "SEGMENT.LOAD.mass|distance|inertia, POINT.distance|offset, "
-        "POINT.stiffness|exponent|damping|friction|slip_speed (its contact), gravity, "
-        "base_angle, landing_speed")
-#: The numbers of a point and of the ground contact at a point.
-POINT_FIELDS = tuple(f.name for f in fields(Point) if f.name not in ("name", "segment"))
-CONTACT_FIELDS = tuple(f.name for f in fields(GroundContact) if f.name != "point")
 
 
 #: The model's own numbers, each a path of one word.
 MODEL_FIELDS = ("gravity", "base_angle", "landing_speed")
+#: Every form of path, for messages and the command line's help.
+HELP = (f"UNIT.FIELD, UNIT.initial_level, UNIT.second_arm (two-joint), "
+        f"UNIT.rampN.{'|'.join(RAMP_FIELDS)}, UNIT.{'|'.join(DYNAMICS_FIELDS)}, "
+        f"JOINT.{'|'.join(JOINT_FIELDS)}, SEGMENT.{'|'.join(SEGMENT_FIELDS)}, "
+        f"SEGMENT.LOAD.{'|'.join(LOAD_FIELDS)}, POINT.{'|'.join(POINT_FIELDS)}, "
+        f"POINT.{'|'.join(CONTACT_FIELDS)} (its contact), {', '.join(MODEL_FIELDS)}")
 #: The optional first word of a path naming the kind of thing it names.
 GROUPS = ("units", "joints", "segments", "points", "contacts")
 
@@ -125,15 +129,12 @@ def _locate(model: ChainModel, path: str, field: str):
                                      f"…ramp{len(unit.activation.ramps)}")
                 return "ramp", unit.name, [n - 1, rest[1]]
     joints = {j.name for j in model.joints}
-    joint_fields = {f.name for f in fields(type(model.joints[0]))} - {"name", "coordinate"}
-    if len(parts) == 2 and parts[0] in joints and parts[1] in joint_fields:
+    if len(parts) == 2 and parts[0] in joints and parts[1] in JOINT_FIELDS:
         return "joint", parts[0], parts[1:]
     segments = {s.name: s for s in model.segments}
-    segment_fields = {f.name for f in fields(type(model.segments[0]))} - {"name", "loads"}
-    if len(parts) == 2 and parts[0] in segments and parts[1] in segment_fields:
+    if len(parts) == 2 and parts[0] in segments and parts[1] in SEGMENT_FIELDS:
         return "segment", parts[0], parts[1:]
-    if len(parts) == 3 and parts[0] in segments and parts[2] in ("mass", "distance",
-                                                                    "inertia"):
+    if len(parts) == 3 and parts[0] in segments and parts[2] in LOAD_FIELDS:
         if parts[1] in {ld.name for ld in segments[parts[0]].loads}:
             return "load", parts[0], parts[1:]
     if len(parts) == 2 and parts[1] in POINT_FIELDS and \
@@ -148,8 +149,9 @@ def _locate(model: ChainModel, path: str, field: str):
     raise _not_a_path(model, path, field)
 
 
-def _value(model: ChainModel, kind: str, owner: str, rest: list):
-    """The number `_locate` found (None for a unit's "equilibrium" initial level)."""
+def _value(model: ChainModel, kind: str, owner: str, rest: list, field: str):
+    """The number `_locate` found (None for a unit's "equilibrium" initial level; a segment's
+    parent distance left to the model is its parent's length)."""
     if kind == "model":
         return getattr(model, rest[0])
     if kind == "unit":
@@ -171,6 +173,13 @@ def _value(model: ChainModel, kind: str, owner: str, rest: list):
         return getattr(next(c for c in model.contacts if c.point == owner), rest[0])
     segment = next(s for s in model.segments if s.name == owner)
     if kind == "segment":
+        if rest == ["parent_distance"] and segment.parent_distance is None:
+            k = [s.name for s in model.segments].index(owner)  # at the parent's length
+            if model.parents[k] < 0:
+                raise ModelError(field, f"{owner}.parent_distance: segment {owner} hangs "
+                                 "from the base, not from a parent; allowed: a segment with a "
+                                 "parent")
+            return model.segments[model.parents[k]].length
         return getattr(segment, rest[0])
     return getattr(next(ld for ld in segment.loads if ld.name == rest[0]), rest[1])
 
@@ -178,7 +187,7 @@ def _value(model: ChainModel, kind: str, owner: str, rest: list):
 def _find(model: ChainModel, path: str, field: str):
     """`_locate` of a path that holds a number (an "equilibrium" initial level does not)."""
     kind, owner, rest = _locate(model, path, field)
-    value = _value(model, kind, owner, rest)
+    value = _value(model, kind, owner, rest, field)
     if value is None:
         raise ModelError(field, f"{path!r}: unit {owner} starts from static equilibrium "
                          "(no initial level to read or change)")
