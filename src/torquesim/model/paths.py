@@ -55,7 +55,7 @@ _RAMP = re.compile(r"ramp(\d+)")
 
 #: The model's own numbers, each a path of one word.
 MODEL_FIELDS = ("gravity", "base_angle", "landing_speed")
-#: Every form of path, for messages and the command line's help.
+#: Every form of path, for the messages that say what a path may be.
 HELP = (f"UNIT.FIELD, UNIT.initial_level, UNIT.second_arm (two-joint), "
         f"UNIT.rampN.{'|'.join(RAMP_FIELDS)}, UNIT.{'|'.join(DYNAMICS_FIELDS)}, "
         f"JOINT.{'|'.join(JOINT_FIELDS)}, SEGMENT.{'|'.join(SEGMENT_FIELDS)}, "
