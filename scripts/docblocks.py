@@ -62,20 +62,13 @@ def fields_block() -> str:
     """Every numeric field of a model file with its unit, meaning and allowed values, from the
     classes' `Allowed` tables (the ones their range checks and the files' comments read):
     cheap, so ``make_docs.py --check`` also checks that the page shows them as they are."""
-    from torquesim.model import activation, chain, contact
-    from torquesim.model.torque_generator import UNIT_FIELDS
+    from torquesim.io.model_file import FIELD_TABLES
 
-    tables = [("top level", chain.CHAIN_FIELDS), ("`[[segments]]`", chain.SEGMENT_FIELDS),
-              ("`loads`", chain.LOAD_FIELDS), ("`[[joints]]`", chain.JOINT_FIELDS),
-              ("`[[units]]`", {**UNIT_FIELDS, **chain.UNIT_GEOMETRY_FIELDS}),
-              ("`[units.activation]`", activation.PROFILE_FIELDS),
-              ("`ramps`", activation.RAMP_FIELDS),
-              ("`[units.activation_dynamics]`", activation.DYNAMICS_FIELDS),
-              ("`[[points]]`", contact.POINT_FIELDS), ("`[[contacts]]`", contact.CONTACT_FIELDS)]
     lines = ["Every number of a model file, with the values allowed and its unit, from the "
              "tables the range checks and the files' comments read "
              "(`torquesim.model.fields.Allowed`)."]
-    for where, table in tables:
+    for section, table in FIELD_TABLES.items():
+        where = section if section == "top level" else f"`{section}`"
         lines += ["", f"**{where}**", "", "| key | allowed | unit | what |", "|---|---|---|---|"]
         lines += [f"| `{name}` | {allowed.interval()} | {allowed.unit or '–'} | "
                   f"{allowed.meaning or '–'} |" for name, allowed in table.items()]

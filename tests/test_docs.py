@@ -203,14 +203,10 @@ def test_the_model_file_page_s_examples_state_the_checked_bounds():
     range checks read (a key of several tables, such as ``distance``, may match any)."""
     import re
 
-    from torquesim.model import activation, chain, contact
-    from torquesim.model.torque_generator import UNIT_FIELDS
+    from torquesim.io.model_file import FIELD_TABLES
 
     allowed: dict[str, set[str]] = {}
-    for table in (chain.CHAIN_FIELDS, chain.SEGMENT_FIELDS, chain.LOAD_FIELDS,
-                  chain.JOINT_FIELDS, chain.UNIT_GEOMETRY_FIELDS, UNIT_FIELDS,
-                  activation.PROFILE_FIELDS, activation.RAMP_FIELDS, activation.DYNAMICS_FIELDS,
-                  contact.POINT_FIELDS, contact.CONTACT_FIELDS):
+    for table in FIELD_TABLES.values():
         for name, values in table.items():
             allowed.setdefault(name, set()).add(values.interval(plain=True))
     page = (ROOT / "docs" / "model-files.md").read_text()

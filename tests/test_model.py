@@ -81,21 +81,25 @@ def test_zero_dumbbell_gives_the_bare_forearm():
 def test_every_field_s_bounds_are_written_once():
     """Each numeric field of a model class has its allowed values in one table (`Allowed`):
     the class's docstring says the same bounds (PointLoad's said [0, inf) where the check held
-    1000 kg), the model file's comment is made from it, and the check refuses a value just
-    beyond either end and an open end itself."""
+    1000 kg; the unit's said (0, inf) for 8 fields the check held to finite limits), the
+    model file's comment is made from it, and the check refuses a value just beyond either
+    end and an open end itself, naming the field."""
     import dataclasses
     import math
     import re
 
     from torquesim.io.model_file import FIELD_DOCS
     from torquesim.model import activation, chain, contact
+    from torquesim.model.torque_generator import UNIT_FIELDS, TorqueGeneratorUnit
 
     load = chain.PointLoad("dumbbell", 5.0, 0.3, 0.01)
     segment = chain.Segment("thigh", 8.0, 0.2, 0.5, 0.4)
     joint = chain.Joint("knee", 0.5, endstop_lower_angle=-0.1, endstop_upper_angle=2.5)
     arm = ts.load_model("builtin:squat-jump-biarticular")
     two_joint = next(u for u in arm.units if u.second_joint is not None)
-    cases = [(load, chain.LOAD_FIELDS), (segment, chain.SEGMENT_FIELDS),
+    assert set(UNIT_FIELDS) == set(TorqueGeneratorUnit.field_names())
+    cases = [(TorqueGeneratorUnit.flexor_default(), UNIT_FIELDS),
+             (load, chain.LOAD_FIELDS), (segment, chain.SEGMENT_FIELDS),
              (joint, chain.JOINT_FIELDS), (two_joint, chain.UNIT_GEOMETRY_FIELDS),
              (arm, chain.CHAIN_FIELDS), (arm.points[0], contact.POINT_FIELDS),
              (arm.contacts[0], contact.CONTACT_FIELDS),
@@ -121,4 +125,4 @@ def test_every_field_s_bounds_are_written_once():
                 for bad in ([beyond, bound] if is_open else [beyond]):
                     with pytest.raises(ts.ModelError) as info:
                         dataclasses.replace(owner, **{name: bad})
-                    assert name in str(info.value), (name, str(info.value))
+                    assert info.value.field == name, (name, str(info.value))

@@ -47,11 +47,19 @@ import tomllib
 from pathlib import Path
 
 from ..errors import ModelError
-from ..model.activation import DYNAMICS_FIELDS, ActivationDynamics, ActivationProfile, Ramp
+from ..model.activation import (
+    DYNAMICS_FIELDS,
+    PROFILE_FIELDS,
+    RAMP_FIELDS,
+    ActivationDynamics,
+    ActivationProfile,
+    Ramp,
+)
 from ..model.body import BodyParameters
 from ..model.chain import (
     CHAIN_FIELDS,
     JOINT_FIELDS,
+    LOAD_FIELDS,
     POSITIVE_MOTIONS,
     SEGMENT_FIELDS,
     UNIT_GEOMETRY_FIELDS,
@@ -70,17 +78,26 @@ from .atomic import write_text_atomic
 EQUILIBRIUM = "equilibrium"
 DIRECTIONS = {"flexor": 1, "extensor": -1, 1: 1, -1: -1}
 
-#: One-line documentation written beside each key: unit, meaning and allowed range, made
-#: from each class's `Allowed` values (a point load's and a ramp's keys sit in inline
-#: tables, without comments), and for the keys that are not numbers.
+#: Every number of a model file, by the file's section: the tables of allowed values
+#: (`Allowed`) that the classes' range checks read (docs/model-files.md shows them).
+FIELD_TABLES = {
+    "top level": CHAIN_FIELDS, "[[segments]]": SEGMENT_FIELDS, "loads": LOAD_FIELDS,
+    "[[joints]]": JOINT_FIELDS, "[[units]]": {**UNIT_FIELDS, **UNIT_GEOMETRY_FIELDS},
+    "[units.activation]": PROFILE_FIELDS, "ramps": RAMP_FIELDS,
+    "[units.activation_dynamics]": DYNAMICS_FIELDS, "[[points]]": POINT_FIELDS,
+    "[[contacts]]": CONTACT_FIELDS,
+}
+#: One-line documentation written beside each key: unit, meaning and allowed range, from
+#: `FIELD_TABLES` (but the sections written without comments: a load's and a ramp's keys sit
+#: in inline tables, the initial level is a number or "equilibrium"), and for the keys that
+#: are not numbers.
 FIELD_DOCS = {
     "coordinate": "output column / OpenSim coordinate name",
     "positive": "what a growing angle is: " + ", ".join(POSITIVE_MOTIONS),
     "base": "fixed (a pivot at the origin) or free (stands on its contacts)",
     "second_joint": "a two-joint unit: the adjacent joint it also spans",
-    **{name: allowed.text() for table in (CHAIN_FIELDS, SEGMENT_FIELDS, JOINT_FIELDS,
-                                          UNIT_GEOMETRY_FIELDS, UNIT_FIELDS, DYNAMICS_FIELDS,
-                                          POINT_FIELDS, CONTACT_FIELDS)
+    **{name: allowed.text() for section, table in FIELD_TABLES.items()
+       if section not in ("loads", "[units.activation]", "ramps")
        for name, allowed in table.items()},
 }
 SEGMENT_KEYS = ("name", "mass", "com_distance", "inertia_about_joint", "length", "loads",
