@@ -267,6 +267,20 @@ def test_model_plot_draws_the_chain_and_the_unit_curves(tmp_path, capsys):
     assert "--out" in capsys.readouterr().err
 
 
+def test_model_paths_lists_every_path_with_its_value_and_range(capsys):
+    """``model --paths``: one row per path the model holds a number at, with that number,
+    and a path it lists is one that --vary takes."""
+    from torquesim.model.paths import model_paths
+
+    assert main(["model", "arm-raise", "--paths"]) == 0
+    rows = capsys.readouterr().out.splitlines()
+    arm = ts.load_model("builtin:arm-raise")
+    assert rows[0].split() == ["path", "value", "unit", "allowed"]
+    assert [row.split()[0] for row in rows[1:]] == model_paths(arm)
+    row = next(r.split() for r in rows if r.startswith("forearm_hand.dumbbell.mass "))
+    assert row[1:] == [f"{arm.segments[1].loads[0].mass:g}", "kg", "[0,", "1e3]"]
+
+
 def test_simulate_animates_the_motion_as_a_stick_figure(tmp_path, capsys, monkeypatch):
     """25 frames per simulated second (played in real time once no slow motion is asked
     for), the stick figure at the simulated angles."""

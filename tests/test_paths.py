@@ -9,7 +9,13 @@ import pytest
 
 import torquesim as ts
 from torquesim.fitting.parameters import ParameterSpace, with_ramps
-from torquesim.model.paths import canonical_path, get_parameter, set_parameter
+from torquesim.model.paths import (
+    allowed_at,
+    canonical_path,
+    get_parameter,
+    model_paths,
+    set_parameter,
+)
 
 
 @pytest.fixture(scope="module")
@@ -60,6 +66,10 @@ def test_activation_ramps_are_paths_and_the_fit_names_them_so(arm):
     ("shoulder_flexor.ramp9.delay", "ramp1"),
     ("shoulder_flexor.initial_level", "static equilibrium"),
     ("forearm_hand.kettlebell.mass", "not a numeric model field"),
+    # a misspelt path names the closest ones; the base's start is explained
+    ("shoulder_flexor.se_stifness", r"\(closest: shoulder_flexor.se_stiffness, "),
+    ("units.elbow_flexor.activation_time_constant", r"\(closest: elbow_flexor.activation_time,"),
+    ("base.initial_height", "static equilibrium on its ground contacts"),
 ])
 def test_unknown_paths_are_one_clear_error(arm, path, match):
     with pytest.raises(ts.ModelError, match=match) as info:
@@ -161,11 +171,22 @@ def test_every_numeric_field_is_a_path_and_no_text_field_is():
               (f"{segment.name}.weight", chain.LOAD_FIELDS), (point, contact.POINT_FIELDS),
               (point, contact.CONTACT_FIELDS),
               (None, {k: v for k, v in chain.CHAIN_FIELDS.items() if k != "duration"})]
+    listed = model_paths(jump)  # what `torquesim model --paths` prints
     for owner, table in owners:
         for name in table:
             path = f"{owner}.{name}" if owner else name
             value = get_parameter(jump, path)
             assert value is None or isinstance(value, float), path
+            assert path in listed and allowed_at(jump, path) is table[name], path
+    assert len(listed) == len(set(listed))
+    for path in listed:  # each listed value within its allowed range, and set back unchanged
+        allowed, value = allowed_at(jump, path), get_parameter(jump, path)
+        if not allowed.related:
+            low, high = allowed.limits({})
+            assert low <= value <= high, path
+        same = set_parameter(jump, path, value)  # a parent distance left None is made explicit
+        assert same == jump or path.endswith(".parent_distance") and np.array_equal(
+            same.parent_distances(), jump.parent_distances()), path
     assert set_parameter(jump, f"{joint.name}.endstop_torque", 2.0).joints[1].endstop_torque \
         == 2.0
     # a parent distance left to the model reads as the parent's length, and can be set

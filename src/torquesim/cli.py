@@ -529,21 +529,25 @@ def conventions_figure(chain):
 @click.option("--densities", type=click.Choice(["Dempster", "Chandler", "Clauser"]),
               default="Dempster", show_default=True,
               help="Segment densities of Yeadon's model (with --measurements).")
+@click.option("--paths", "list_paths", is_flag=True,
+              help="Print every parameter path of the model (what --vary, --bound, --freeze "
+                   "and --free take) with its value, SI unit and allowed range.")
 def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, age,
-          measurements, densities):
+          measurements, densities, list_paths):
     """Write a model as an editable TOML file: a preset (NAME is one of the presets listed by
     `torquesim simulate --help`; builtin: prefix optional), made for a subject with
     --body-mass and --height (de Leva) or --measurements (Yeadon), or a checked, rewritten
-    copy of a model file; or draw it with --plot, its angle conventions with --conventions."""
+    copy of a model file; or draw it with --plot, its angle conventions with --conventions;
+    or list its parameter paths with --paths."""
     from .io.model_file import load_model, save_model
     from .model.presets import PREFIX, PRESETS
 
     if name not in PRESETS and not name.startswith(PREFIX) and not Path(name).exists():
         raise ModelError("NAME", f"{name!r} is neither a built-in model nor a file; allowed: "
                          f"{', '.join(PRESETS)} or a model file")
-    if out_path is None and plot_path is None and conventions_path is None:
-        raise ModelError("--out", "nothing to write; allowed: --out FILE.toml, --plot FILE.png "
-                         "and/or --conventions FILE.png")
+    if out_path is None and plot_path is None and conventions_path is None and not list_paths:
+        raise ModelError("--out", "nothing to write; allowed: --out FILE.toml, --plot FILE.png, "
+                         "--conventions FILE.png and/or --paths")
     _check_output(out_path, (".toml",), "--out")
     _check_output(plot_path, PLOT_SUFFIXES, "--plot")
     _check_output(conventions_path, PLOT_SUFFIXES, "--conventions")
@@ -602,6 +606,23 @@ def model(name, out_path, plot_path, conventions_path, body_mass, height, sex, a
 
         save_figure(conventions_figure(chain), conventions_path, "--conventions")
         click.echo(f"wrote {conventions_path}")
+    if list_paths:
+        click.echo(paths_table(chain))
+
+
+def paths_table(chain) -> str:
+    """Every parameter path of ``chain`` (`model.paths.model_paths`) with its value, SI unit
+    and allowed range, one line each under a header."""
+    from .model.paths import allowed_at, get_parameter, model_paths
+
+    rows = [("path", "value", "unit", "allowed")]
+    for path in model_paths(chain):
+        allowed = allowed_at(chain, path)
+        rows.append((path, f"{get_parameter(chain, path):.6g}", allowed.unit or "-",
+                     allowed.interval()))
+    widths = [max(len(row[k]) for row in rows) for k in range(3)]
+    return "\n".join("  ".join([*(row[k].ljust(widths[k]) for k in range(3)), row[3]])
+                     for row in rows)
 
 
 class Progress:

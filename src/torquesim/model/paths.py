@@ -32,13 +32,15 @@ path.
 
 from __future__ import annotations
 
+import difflib
 import re
 from dataclasses import fields, replace
 
 from ..errors import ModelError
 from . import activation, chain, contact
 from .chain import ChainModel
-from .torque_generator import TorqueGeneratorUnit
+from .fields import Allowed
+from .torque_generator import UNIT_FIELDS, TorqueGeneratorUnit
 
 #: The numbers each kind of path reaches, from the tables of allowed values (`Allowed`):
 #: a ramp's, activation dynamics', a joint's, a segment's, a point load's, a point's and the
@@ -82,9 +84,61 @@ def _unit_names(model: ChainModel) -> dict[str, str]:
     return {u.name: u.name for u in model.units} | model.unit_aliases()
 
 
+#: The allowed values of each kind of path's fields (`_locate`'s kinds).
+_TABLES = {"model": chain.CHAIN_FIELDS, "unit": UNIT_FIELDS | activation.PROFILE_FIELDS,
+           "geometry": chain.UNIT_GEOMETRY_FIELDS, "dynamics": activation.DYNAMICS_FIELDS,
+           "ramp": activation.RAMP_FIELDS, "joint": chain.JOINT_FIELDS,
+           "segment": chain.SEGMENT_FIELDS, "load": chain.LOAD_FIELDS,
+           "point": contact.POINT_FIELDS, "contact": contact.CONTACT_FIELDS}
+
+
+def _vocabulary(model: ChainModel) -> list[str]:
+    """Every path the vocabulary could name on ``model``'s units and parts, in the order of
+    the model file (some hold no number on this model: a one-joint unit's second arm)."""
+    paths = list(MODEL_FIELDS)
+    for s in model.segments:
+        paths += [f"{s.name}.{f}" for f in SEGMENT_FIELDS]
+        paths += [f"{s.name}.{ld.name}.{f}" for ld in s.loads for f in LOAD_FIELDS]
+    paths += [f"{j.name}.{f}" for j in model.joints for f in JOINT_FIELDS]
+    for u in model.units:
+        paths += [f"{u.name}.{f}" for f in (*_TABLES["unit"], "second_arm", *DYNAMICS_FIELDS)]
+        paths += [f"{u.name}.ramp{n}.{f}" for n in range(1, len(u.activation.ramps) + 1)
+                  for f in RAMP_FIELDS]
+    paths += [f"{p.name}.{f}" for p in model.points for f in POINT_FIELDS]
+    return paths + [f"{c.point}.{f}" for c in model.contacts for f in CONTACT_FIELDS]
+
+
+def model_paths(model: ChainModel) -> list[str]:
+    """Every path of ``model`` that holds a number, by unit and part names, in the order of
+    the model file: its own numbers, segments (and their loads), joints, units (parameters,
+    initial level, second arm, activation dynamics, ramps), points and their contacts."""
+    found = []
+    for path in _vocabulary(model):
+        try:
+            _find(model, path, "path")
+        except ModelError:  # a field this model leaves out (one-joint unit, no dynamics, …)
+            continue
+        found.append(path)
+    return found
+
+
+def allowed_at(model: ChainModel, path: str, field: str = "path") -> Allowed:
+    """The unit, meaning and bounds (`Allowed`) of the number at ``path``."""
+    kind, _, rest = _locate(model, path, field)
+    return _TABLES[kind][rest[-1]]
+
+
 def _not_a_path(model: ChainModel, path: str, field: str) -> ModelError:
-    return ModelError(field, f"{path!r} is not a numeric model field; allowed: {HELP} (units "
-                      f"{', '.join(_unit_names(model))})")
+    if _parts(path)[0] == "base":
+        return ModelError(field, f"{path!r}: the base's start is no field; a free base starts "
+                          "in static equilibrium on its ground contacts, or at touchdown with "
+                          "landing_speed; allowed: base_angle, landing_speed, a joint's "
+                          "initial_angle or initial_speed")
+    close = difflib.get_close_matches(without_group(path), _vocabulary(model), n=3, cutoff=0.6)
+    return ModelError(field, f"{path!r} is not a numeric model field"
+                      + (f" (closest: {', '.join(close)})" if close else "")
+                      + f"; allowed: {HELP} (units {', '.join(_unit_names(model))}; every "
+                      "path of a model: torquesim model NAME --paths)")
 
 
 def canonical_path(model: ChainModel, path: str, field: str = "path") -> str:
