@@ -910,7 +910,9 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
               help="Change a parameter's bounds (repeatable), e.g. "
                    "elbow.flexor.ramp1.delay=0,0.5 (UNIT.rampK.FIELD; UNIT a unit name such as "
                    "elbow_flexor, or JOINT.flexor or JOINT.extensor). Defaults: delays 0-1 s, "
-                   "durations 0.05-0.8 s, levels 0-1.")
+                   "durations 0.05-0.8 s, levels 0-1. A model field's path (SI) fits that "
+                   "field too, from the model's value: toe.stiffness=1e6,1e7, "
+                   "elbow_flexor.se_stiffness=300,900 (see torquesim model NAME --paths).")
 @click.option("--freeze", "frozen", multiple=True, metavar="NAME=VALUE",
               help="Hold a parameter fixed (repeatable), e.g. elbow.extensor.ramp1.level=0.1.")
 @click.option("--weight", "joint_weights", multiple=True, metavar="JOINT=W",
@@ -1017,7 +1019,7 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
     space = ParameterSpace.for_model(base, rest_level=rest_level)
     try:
         for name, (low, high) in _parse_assignments(bounds, "--bound", 2).items():
-            space = space.with_bounds(name, low, high)
+            space = space.with_bounds(name, low, high, base)
         for name, (value,) in _parse_assignments(frozen, "--freeze", 1).items():
             space = space.with_frozen(name, value)
     except ModelError as exc:
@@ -1027,8 +1029,11 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
     settings = SearchSettings(search=search, seed=seed, starts=starts, iterations=iterations,
                               generations=generations, population_per_parameter=population,
                               polish_simulations=polish, max_time=max_time)
-    problem = FitProblem(target, space, base, method, step, weight_velocity, weight_end,
-                         weight_effort, weights, weight_grf, weight_com)
+    try:
+        problem = FitProblem(target, space, base, method, step, weight_velocity, weight_end,
+                             weight_effort, weights, weight_grf, weight_com)
+    except ModelError as exc:
+        raise _as_option(exc, {"bounds": "--bound"}) from None
     checkpoint = out / CHECKPOINT_FILE
     state = None
     if resume:
@@ -1248,14 +1253,17 @@ def _strength_unit(model, unit_name, trials, units, torque_sign):
               help="Simulate this long instead of the model's duration (s).")
 @click.option("--free", "free", multiple=True, metavar="PATH",
               help="What may change (repeatable): a unit (elbow_flexor, elbow.flexor), "
-                   "UNIT.rampK or UNIT.rampK.FIELD; everything else is frozen. Default: every "
-                   "unit's ramps.")
+                   "UNIT.rampK or UNIT.rampK.FIELD, or a model field given a --bound; "
+                   "everything else is frozen. Default: every unit's ramps and every model "
+                   "field given a --bound.")
 @click.option("--freeze", "frozen", multiple=True, metavar="PATH[=VALUE]",
               help="Hold a unit, a ramp or a parameter (repeatable) at its start value or at "
                    "VALUE, e.g. elbow_extensor or elbow_flexor.ramp1.level=0.6.")
 @click.option("--bound", "bounds", multiple=True, metavar="PATH=LOW,HIGH",
               help="Bounds replacing the window (repeatable; s for delays and durations), "
-                   "e.g. elbow_flexor.ramp1.level=0,1; they must contain the start value.")
+                   "e.g. elbow_flexor.ramp1.level=0,1; they must contain the start value. A "
+                   "model field's path (SI) searches that field too: knee.initial_angle=1,2, "
+                   "gastrocnemius.se_stiffness=1500,4000 (see torquesim model NAME --paths).")
 @click.option("--window-delay", type=TIME, default=0.05, show_default=True,
               help="Every delay may move ± this (s) from the start's.")
 @click.option("--window-duration", type=click.FloatRange(0.0, 0.99), default=0.3,

@@ -37,8 +37,9 @@ from .problem import FitProblem
 
 CHECKPOINT_VERSION = 2
 SEARCHES = ("least-squares", "global")
-#: Difference step of the Jacobian (s for delays and durations, activation for levels):
-#: forward, backward where the upper bound is closer.
+#: Difference step of the Jacobian (s for delays and durations, activation for levels; for a
+#: model field this times its range, `ParameterSpace.difference_scales`): forward, backward
+#: where the upper bound is closer.
 DIFFERENCE_STEP = 1e-6
 JACOBIANS = ("forward", "central")
 #: Residual evaluations each least-squares start gets before the best one is refined: at
@@ -58,6 +59,8 @@ def _better_start(problem, guess, guess_score, failed, say):
 
     base = as_chain(problem.base_model) if problem.base_model is not None else None
     own = own_vector(base) if base is not None and base.base == "free" else None
+    if own is not None:  # with the guess's model fields
+        own = np.concatenate([own, guess[own.size:]])
     if own is None or own.size != guess.size:
         return guess, guess_score, failed
     own = np.clip(own, problem.space.lower, problem.space.upper)
@@ -511,9 +514,10 @@ class _Run:
         else it is simulated too). A column whose run fails is 0."""
         lo = np.array(self.space.lower)[self.free]
         hi = np.array(self.space.upper)[self.free]
+        h = DIFFERENCE_STEP * self.space.difference_scales()[self.free]
         if self.settings.jacobian == "central":
-            plus = np.minimum(z + DIFFERENCE_STEP, hi)
-            minus = np.maximum(z - DIFFERENCE_STEP, lo)
+            plus = np.minimum(z + h, hi)
+            minus = np.maximum(z - h, lo)
             rows = np.empty((2 * z.size, self.space.size))
             for i in range(z.size):
                 zp, zm = z.copy(), z.copy()
@@ -524,7 +528,7 @@ class _Run:
             jac = (residuals[0::2] - residuals[1::2]).T / (plus - minus)
             jac[:, failed[0::2] | failed[1::2]] = 0.0
             return jac
-        moved = np.where(z + DIFFERENCE_STEP <= hi, z + DIFFERENCE_STEP, z - DIFFERENCE_STEP)
+        moved = np.where(z + h <= hi, z + h, z - h)
         moved = np.clip(moved, lo, hi)
         rows = np.empty((z.size + (at is None), self.space.size))
         for i in range(z.size):

@@ -213,7 +213,8 @@ def fit_ramps(t, level, initial_level: float, lower, upper) -> np.ndarray:
 
 
 def initial_guess(problem) -> np.ndarray:
-    """A parameter vector from inverse dynamics (module docstring), inside the bounds."""
+    """A parameter vector from inverse dynamics (module docstring), inside the bounds; the
+    searched model fields (if any) at the model's values."""
     model, space = problem.model, problem.space
     t, q, qd, torque = required_torques(model, problem.target)
     levels = quasi_static_activations(model, q, qd, torque, problem.initial_levels)
@@ -222,6 +223,6 @@ def initial_guess(problem) -> np.ndarray:
     for u in range(model.n_units):
         window = slice(u * PER_UNIT, (u + 1) * PER_UNIT)
         parts.append(fit_ramps(t, levels[u], problem.levels[u], lower[window], upper[window]))
-    x = np.concatenate(parts)
+    x = np.concatenate([*parts, space.field_values(model)])
     return space.clip(space.full(x[space.free], x))
 

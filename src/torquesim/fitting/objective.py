@@ -67,9 +67,11 @@ def pack_profile(x, offset, initial_level, out):
 
 
 #: What became of a candidate's run (`run_status`), and why a run that failed is unusable.
-RUN_OK, RUN_NON_FINITE, RUN_DIVERGED, RUN_UNSTABLE_MUSCLE, RUN_UNSTABLE_CONTACT = range(5)
+RUN_OK, RUN_NON_FINITE, RUN_DIVERGED, RUN_UNSTABLE_MUSCLE, RUN_UNSTABLE_CONTACT, RUN_NO_START = \
+    range(6)
 RUN_REASONS = ("", "non-finite state", "diverged", "step beyond explicit RK4's stability "
-               "limit in a unit", "step beyond RK4's stability limit in a ground contact")
+               "limit in a unit", "step beyond RK4's stability limit in a ground contact",
+               "its model fields give no valid model or no static equilibrium to start from")
 
 
 @njit(cache=True, error_model="numpy")
@@ -227,6 +229,76 @@ def run_population(rows, kinds, coupling, y0, step: float, n_steps: int, arrays,
     run(0)  # this thread takes the first block instead of waiting
     for other in others:
         other.result()
+    return states, activations, outputs, status
+
+
+class OwnStart(NamedTuple):
+    """What a candidate with model fields of its own starts from (`OwnStarts`)."""
+
+    model: object  #: its `ChainModel` (the ramps those of the model it was made from)
+    y0: np.ndarray  #: its initial state
+    levels: np.ndarray  #: its units' initial activations
+    arrays: tuple  #: its packed (segments, joints, units)
+
+
+class OwnStarts:
+    """The `OwnStart` of a candidate whose searched model fields (``space.fields``) differ
+    from ``model``'s: ``starts(x)`` for a full parameter vector ``x``, None when its fields
+    give no valid model or no static equilibrium (a `ModelError`). The start does not depend
+    on the ramps, so it is made once per distinct set of field values (a Jacobian's ramp
+    columns share one; the most recent `MAX_KEPT` are kept)."""
+
+    MAX_KEPT = 256
+
+    def __init__(self, space, model):
+        self.space, self.model = space, model
+        self.kept: dict[tuple, OwnStart | None] = {}
+
+    def __call__(self, x) -> OwnStart | None:
+        from ..errors import ModelError
+
+        key = tuple(np.asarray(x, dtype=float)[x.size - len(self.space.fields):].tolist())
+        if key not in self.kept:
+            if len(self.kept) >= self.MAX_KEPT:
+                self.kept.pop(next(iter(self.kept)))
+            try:
+                model = self.space.with_fields(self.model, x)
+                start = model.initial_state()
+            except ModelError:
+                self.kept[key] = None
+            else:
+                levels = np.array(start.levels, dtype=float)
+                packed = model.pack(levels)
+                self.kept[key] = OwnStart(model, start.state, levels,
+                                          (packed.segments, packed.joints, packed.units))
+        return self.kept[key]
+
+
+def run_own_models(rows, starts, kinds, coupling, step: float, n_steps: int,
+                   explicit_muscles: bool, ground_steps, activation_steps: int = 0):
+    """`run_population` of candidates each with a model of its own (searched model fields):
+    row j from ``starts[j]`` (`OwnStart`; None: status `RUN_NO_START`), each candidate alone
+    on one of the pool's threads (`_pool`), as many at once as `run_population` runs. Same
+    returns; the same compiled kernel."""
+    m, steps = rows.shape[0], n_steps + 1
+    y0 = next((s.y0 for s in starts if s is not None), np.zeros(1))
+    n_units = next((s.levels.size for s in starts if s is not None), 0)
+    states = np.empty((m, steps, y0.size))
+    activations = np.empty((m, n_units, activation_steps))
+    outputs = np.zeros((m, len(GROUND_OUTPUTS), steps if len(ground_steps) else 1))
+    status = np.full(m, RUN_NO_START, dtype=np.int64)
+    ground_steps = np.asarray(ground_steps, dtype=np.int64)
+
+    def run(j):
+        start = starts[j]
+        if start is None:
+            return
+        ground = ground_kinds(start.arrays[0], start.arrays[1].shape[0])
+        simulate_population(0, 1, rows[j:j + 1], start.levels, kinds, tuple(start.arrays),
+                            (coupling, start.y0, step, n_steps, explicit_muscles, ground),
+                            ground_steps, (states[j:j + 1], activations[j:j + 1],
+                                           outputs[j:j + 1], status[j:j + 1]))
+    list(_pool(min(numba.get_num_threads(), m)).map(run, range(m)))  # raises what a run raised
     return states, activations, outputs, status
 
 

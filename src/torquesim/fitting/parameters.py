@@ -1,10 +1,14 @@
-"""The fitted parameters: 3 ramps × (delay, duration, level) for every unit of the model.
+"""The searched parameters: 3 ramps × (delay, duration, level) for every unit of the model,
+then any model fields given a range.
 
-A parameter is named ``UNIT.rampK.FIELD`` after the model's unit, e.g.
+A ramp parameter is named ``UNIT.rampK.FIELD`` after the model's unit, e.g.
 ``elbow_flexor.ramp1.delay`` (9 per unit, units in model order). ``JOINT.flexor`` and
 ``JOINT.extensor`` name the joint's one unit of that direction (``elbow.flexor.ramp1.delay``),
 and on a one-joint model the bare ``flexor``/``extensor`` do too (``flexor.ramp1.delay``, the
-names of torquesim 0.2's elbow fit).
+names of torquesim 0.2's elbow fit). A model field is named by its parameter path
+(`torquesim.model.paths`: ``toe.stiffness``, ``knee_extensors.isometric_torque``) and is
+searched when it is given bounds (`ParameterSpace.with_bounds` with the model); it follows
+the ramps in the vector, in the order given.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ import numpy as np
 
 from ..errors import ModelError, check_range
 from ..model.activation import ActivationProfile, Ramp
-from ..model.paths import without_group
+from ..model.paths import canonical_path, get_parameter, limits_at, set_parameter, without_group
 
 RAMPS_PER_UNIT = 3
 RAMP_FIELDS = ("delay", "duration", "level")
@@ -57,6 +61,10 @@ class ParameterSpace:
         others start from static equilibrium). None: each unit's own. Bounds [0, 1].
     aliases : dict
         Other names of units (see `unit_aliases`).
+    fields : dict
+        Model fields searched beside the ramps: canonical parameter path → (low, high,
+        low_open, high_open), the values the model allows there (`paths.limits_at`); their
+        bounds follow the ramps' in ``lower`` and ``upper``. Default: none.
     """
 
     units: tuple[str, ...] = ELBOW_UNITS
@@ -68,6 +76,7 @@ class ParameterSpace:
                                                    "extensor": ELBOW_UNITS[1],
                                                    "elbow.flexor": ELBOW_UNITS[0],
                                                    "elbow.extensor": ELBOW_UNITS[1]})
+    fields: dict = field(default_factory=dict)
 
     @classmethod
     def for_model(cls, model, **kwargs) -> ParameterSpace:
@@ -77,7 +86,7 @@ class ParameterSpace:
 
     def __post_init__(self) -> None:
         names = self.names
-        defaults = [DEFAULT_BOUNDS[_field_of(n)] for n in names]
+        defaults = [DEFAULT_BOUNDS[_field_of(n)] for n in parameter_names(self.units)]
         if self.lower is None:
             object.__setattr__(self, "lower", tuple(d[0] for d in defaults))
         if self.upper is None:
@@ -88,9 +97,10 @@ class ParameterSpace:
         if self.rest_level is not None:
             check_range("rest_level", self.rest_level, 0.0, 1.0)
         for i, name in enumerate(names):
-            low, high = HARD_LIMITS[_field_of(name)]
-            check_range(f"bounds.{name}", self.lower[i], low, high)
-            check_range(f"bounds.{name}", self.upper[i], low, high)
+            low, high, low_open, high_open = self._limits(name)
+            for value in (self.lower[i], self.upper[i]):
+                check_range(f"bounds.{name}", value, low, high, low_open=low_open,
+                            high_open=high_open)
             if self.lower[i] >= self.upper[i]:
                 raise ModelError(f"bounds.{name}", f"lower {self.lower[i]:g} ≥ upper "
                                  f"{self.upper[i]:g}; allowed lower < upper (to hold a "
@@ -98,8 +108,9 @@ class ParameterSpace:
         resolved = {}
         for name, value in self.frozen.items():
             canonical = self.resolve(name, "freeze")
-            low, high = HARD_LIMITS[_field_of(canonical)]
-            check_range(f"freeze.{name}", value, low, high)
+            low, high, low_open, high_open = self._limits(canonical)
+            check_range(f"freeze.{name}", value, low, high, low_open=low_open,
+                        high_open=high_open)
             i = names.index(canonical)
             if not self.lower[i] <= value <= self.upper[i]:
                 raise ModelError(f"freeze.{name}", f"{value:g} is outside its bounds; allowed "
@@ -111,23 +122,35 @@ class ParameterSpace:
             resolved[canonical] = float(value)
         object.__setattr__(self, "frozen", resolved)
 
+    def _limits(self, name: str) -> tuple[float, float, bool, bool]:
+        """(low, high, low_open, high_open) any value of parameter ``name`` must keep."""
+        return self.fields.get(name) or (*HARD_LIMITS[_field_of(name)], False, False)
+
     @property
     def names(self) -> tuple[str, ...]:
-        return parameter_names(self.units)
+        return parameter_names(self.units) + tuple(self.fields)
 
     @property
     def size(self) -> int:
-        return len(self.units) * PER_UNIT
+        return len(self.units) * PER_UNIT + len(self.fields)
 
     def resolve(self, name: str, what: str = "parameter") -> str:
         """The canonical name of the parameter path ``name`` (`torquesim.model.paths`: a unit
         alias replaced by the unit's name, an optional leading ``units.`` dropped)."""
-        unit, dot, rest = without_group(name).rpartition(".ramp")
+        bare = without_group(name)
+        unit, dot, rest = bare.rpartition(".ramp")
         canonical = f"{self.aliases.get(unit, unit)}{dot}{rest}"
-        if canonical not in self.names:
-            raise ModelError(what, f"{name!r} is not a parameter; allowed: {NAME_HELP} "
-                             f"{', '.join(self.units)}")
-        return canonical
+        if canonical in self.names:
+            return canonical
+        for alias in sorted(self.aliases, key=len, reverse=True):  # a searched model field
+            if bare.startswith(alias + "."):
+                bare = self.aliases[alias] + bare[len(alias):]
+                break
+        if bare in self.fields:
+            return bare
+        raise ModelError(what, f"{name!r} is not a parameter; allowed: {NAME_HELP} "
+                         f"{', '.join(self.units)}; or a model field given a range, "
+                         "--bound PATH=LOW,HIGH (torquesim model NAME --paths)")
 
     def select(self, path: str, what: str = "parameter") -> list[str]:
         """The parameter names ``path`` selects: all of a unit's (``UNIT``), one ramp's
@@ -148,11 +171,48 @@ class ParameterSpace:
     def index(self, name: str) -> int:
         return self.names.index(self.resolve(name))
 
-    def with_bounds(self, name: str, low: float, high: float) -> ParameterSpace:
-        i = self.names.index(self.resolve(name, "bounds"))
+    def with_bounds(self, name: str, low: float, high: float, model=None) -> ParameterSpace:
+        """This space with the bounds of ``name`` set to [low, high]: a ramp parameter or a
+        searched field, else, given the ``model`` (a `ChainModel`), the model field at that
+        parameter path, searched from now on."""
+        try:
+            i = self.names.index(self.resolve(name, "bounds"))
+        except ModelError:
+            if model is None or not self.is_field(model, name):
+                raise
+            path = canonical_path(model, name, "bounds")
+            return replace(self, fields={**self.fields, path: limits_at(model, path)},
+                           lower=(*self.lower, low), upper=(*self.upper, high))
         lower, upper = list(self.lower), list(self.upper)
         lower[i], upper[i] = low, high
         return replace(self, lower=tuple(lower), upper=tuple(upper))
+
+    def is_field(self, model, path: str) -> bool:
+        """Whether ``path`` names a model field of ``model`` (`torquesim.model.paths`) that
+        is not a ramp parameter."""
+        try:
+            name = canonical_path(model, path)
+        except ModelError:
+            return False
+        return name not in parameter_names(self.units) and ".ramp" not in name
+
+    def field_values(self, model) -> np.ndarray:
+        """The searched fields' values in ``model``, in vector order (SI)."""
+        return np.array([get_parameter(model, path) for path in self.fields], dtype=float)
+
+    def difference_scales(self) -> np.ndarray:
+        """Each parameter's scale for a difference quotient: 1 (s, activation) for a ramp
+        parameter, its range for a model field (a stiffness of 1e6 N/m^1.5 moves in N/m^1.5)."""
+        ramps = len(self.units) * PER_UNIT
+        return np.concatenate([np.ones(ramps), np.subtract(self.upper, self.lower)[ramps:]])
+
+    def with_fields(self, model, x):
+        """``model`` with the searched fields at their values in the full vector ``x``; a
+        value the model does not allow is a `ModelError`."""
+        ramps = len(self.units) * PER_UNIT
+        for k, path in enumerate(self.fields):
+            model = set_parameter(model, path, float(x[ramps + k]))
+        return model
 
     def with_frozen(self, name: str, value: float) -> ParameterSpace:
         return replace(self, frozen={**self.frozen, self.resolve(name, "freeze"): value})

@@ -34,6 +34,13 @@ GROUND_STEPS = (5e-3, 2.5e-3, 1e-3, 5e-4, 2.5e-4, 1e-4, 5e-5, 2.5e-5, 1e-5)
 GROUND_STEP_MARGIN = 0.7
 
 
+#: Model fields a fit sets itself, which its bounds cannot free: why, by field name.
+FITTED_ELSEWHERE = {"initial_angle": "a fit starts each joint at its target's first angle",
+                    "initial_speed": "a fit starts each joint at its target's first speed",
+                    "initial_level": "a fit starts each unit at its rest level (--rest-level) "
+                                     "or at static equilibrium"}
+
+
 def default_step(model) -> float:
     """The fit's default step, s: `DEFAULT_STEP` on a fixed base. On a body on the ground,
     whose contacts every technique integrates explicitly, the largest of `GROUND_STEPS`
@@ -69,7 +76,9 @@ class FitProblem:
     others at the model's initial angle), at rest in static equilibrium, and the duration is
     the target's span; ``step`` (s) defaults to `default_step`. Every unit's activation is
     3 ramps (9 parameters,
-    `ParameterSpace`) from its equilibrium or rest level. ``residuals`` and
+    `ParameterSpace`) from its equilibrium or rest level; model fields given bounds in the
+    space (a contact's stiffness, a unit's strength) are fitted too, each candidate then
+    starting from the static equilibrium of its own model. ``residuals`` and
     ``evaluate`` simulate candidate parameter vectors (see
     `torquesim.fitting.objective`) and count simulations.
 
@@ -126,6 +135,11 @@ class FitProblem:
             raise ModelError("model", f"the parameter space is for units "
                              f"{', '.join(self.space.units)}, the model has "
                              f"{', '.join(u.name for u in base.units)}")
+        for path in self.space.fields:
+            why = FITTED_ELSEWHERE.get(path.rpartition(".")[2])
+            if why:
+                raise ModelError(f"bounds.{path}", f"{why}; allowed: a field the fit leaves "
+                                 "to the model (torquesim model NAME --paths)")
         names = [j.name for j in base.joints]
         for joint in self.target.joints:
             if joint not in names:
@@ -195,6 +209,7 @@ class FitProblem:
         self.body_weight = base.weight
         self.channel_scales = np.array([self.weight_grf / self.body_weight if c.startswith("grf")
                                         else self.weight_com for c in channels])
+        self.own_starts = obj.OwnStarts(self.space, self.model)
         self.terms = obj.ResidualTerms(
             self.times, self.scored, self.target_angles, self.target_omega, self.weights,
             self.channels, self.target_channels, self.channel_scales, self.rests,
@@ -217,13 +232,26 @@ class FitProblem:
         for begin in range(0, population.shape[0], obj.POPULATION_CHUNK):
             rows = population[begin:begin + obj.POPULATION_CHUNK]
             m = rows.shape[0]
-            states, _, outputs, status = obj.run_population(
-                rows, self.step_kinds, self.coupling.to_array(), self.y0, self.step,
-                self.n_steps, self.arrays, self.levels, self.explicit_muscles, self.ground_steps)
-            obj.population_residuals(
-                rows, self.levels, states, outputs, status, self.step,
-                self.arrays[1].shape[0], self.terms, out[begin:begin + m],
-                failed[begin:begin + m])
+            if not self.space.fields:
+                states, _, outputs, status = obj.run_population(
+                    rows, self.step_kinds, self.coupling.to_array(), self.y0, self.step,
+                    self.n_steps, self.arrays, self.levels, self.explicit_muscles,
+                    self.ground_steps)
+                obj.population_residuals(
+                    rows, self.levels, states, outputs, status, self.step,
+                    self.arrays[1].shape[0], self.terms, out[begin:begin + m],
+                    failed[begin:begin + m])
+                continue
+            starts = [self.own_starts(x) for x in rows]
+            states, _, outputs, status = obj.run_own_models(
+                rows, starts, self.step_kinds, self.coupling.to_array(), self.step,
+                self.n_steps, self.explicit_muscles, self.ground_steps)
+            for j, start in enumerate(starts):  # each from its own initial levels
+                k = begin + j
+                obj.population_residuals(
+                    rows[j:j + 1], self.levels if start is None else start.levels,
+                    states[j:j + 1], outputs[j:j + 1], status[j:j + 1], self.step,
+                    self.arrays[1].shape[0], self.terms, out[k:k + 1], failed[k:k + 1])
         self.simulations += population.shape[0]
         self.failed_simulations += int(failed.sum())
         return out, failed
@@ -234,8 +262,9 @@ class FitProblem:
         return np.sqrt(np.einsum("ij,ij->i", residuals, residuals)), failed
 
     def model_for(self, x) -> ChainModel:
-        """The model with the activation ramps of the parameter vector ``x``."""
-        return with_ramps(self.model, x, self.initial_levels)
+        """The model with the activation ramps and the searched fields of the parameter
+        vector ``x``."""
+        return self.space.with_fields(with_ramps(self.model, x, self.initial_levels), x)
 
     def errors_deg(self, result) -> dict[str, tuple[float, float]]:
         """(RMS, max) angle error per scored joint of a simulation result at the target
@@ -273,7 +302,9 @@ class FitProblem:
     def activations(self, x) -> np.ndarray:
         """Every unit's activation (units × target samples) under the parameter vector
         ``x``."""
-        packed = self.model_for(x).pack(self.levels).activations
+        model = self.model_for(x)
+        levels = model.initial_state().levels if self.space.fields else self.levels
+        packed = model.pack(levels).activations
         return np.array([[activation(t, row, 0) for t in self.times] for row in packed])
 
     def mean_activations(self, x) -> dict[str, float]:

@@ -128,6 +128,17 @@ def allowed_at(model: ChainModel, path: str, field: str = "path") -> Allowed:
     return _TABLES[kind][rest[-1]]
 
 
+def limits_at(model: ChainModel, path: str, field: str = "path") -> tuple[float, float, bool,
+                                                                          bool]:
+    """(low, high, low_open, high_open): the values ``model`` allows at ``path``, a bound
+    that is another field's value read from ``model`` (`allowed_at`)."""
+    allowed = allowed_at(model, path, field)
+    owner = canonical_path(model, path, field).rpartition(".")[0]
+    related = {b[1]: get_parameter(model, f"{owner}.{b[1]}" if owner else b[1], field)
+               for b in (allowed.low, allowed.high) if isinstance(b, tuple)}
+    return (*allowed.limits(related), allowed.low_open, allowed.high_open)
+
+
 def _not_a_path(model: ChainModel, path: str, field: str) -> ModelError:
     if _parts(path)[0] == "base":
         return ModelError(field, f"{path!r}: the base's start is no field; a free base starts "

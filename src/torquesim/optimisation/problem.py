@@ -6,7 +6,10 @@ profile is unchanged). By default every parameter may move within a window aroun
 starting model's value (`Window`), so that the optimum stays a technique the performer could
 use; ``free`` picks what may move (everything else is frozen), ``frozen`` and ``bounds``
 refine it, in the one parameter-path vocabulary (``UNIT``, ``UNIT.rampK``,
-``UNIT.rampK.FIELD``; units by name or alias).
+``UNIT.rampK.FIELD``; units by name or alias). A model field (any parameter path,
+`torquesim.model.paths`: ``knee.initial_angle``, ``gastrocnemius.se_stiffness``) is searched
+too when ``bounds`` gives its range; each candidate then starts from the static equilibrium
+of its own model.
 
 A candidate is simulated with the problem's technique and step (compiled, in parallel
 threads, `torquesim.optimisation.population`); it fails, with the reason counted, when its run
@@ -38,6 +41,8 @@ from ..fitting.objective import (
     POPULATION_CHUNK,
     RUN_OK,
     RUN_REASONS,
+    OwnStarts,
+    run_own_models,
     run_population,
 )
 from ..fitting.parameters import (
@@ -51,6 +56,7 @@ from ..fitting.parameters import (
 )
 from ..fitting.problem import DEFAULT_METHOD, default_step, fit_step
 from ..model.chain import ChainModel, as_chain
+from ..model.paths import get_parameter
 from ..solvers import step_loop
 from ..solvers.choice import choose_technique
 from ..solvers.techniques import (
@@ -134,16 +140,21 @@ def three_ramps(model: ChainModel) -> ChainModel:
 
 def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=None,
                     bounds=None) -> ParameterSpace:
-    """The searched space around the parameter vector ``start`` of the 3-ramp ``model``
+    """The searched space around the ramp vector ``start`` of the 3-ramp ``model``
     (module docstring). ``frozen``: path → value (None: the start's); ``bounds``: path →
-    (low, high), replacing the window; each must contain the start's value."""
+    (low, high), replacing the window, or for a model field its range (it is then searched,
+    after the ramps); each must contain the start's value."""
     space = ParameterSpace.for_model(model)
     names = space.names
     lower, upper = zip(*(window.around(n, float(v)) for n, v in zip(names, start,
                                                                      strict=True)),
                        strict=True)
     lower, upper = list(lower), list(upper)
+    fields = {}
     for path, (low, high) in (bounds or {}).items():
+        if space.is_field(model, path):
+            fields[path] = (low, high)
+            continue
         for name in space.select(path, "bounds"):
             i = names.index(name)
             if not low <= start[i] <= high:
@@ -156,18 +167,39 @@ def parameter_space(model: ChainModel, start, window: Window, free=(), frozen=No
     for i, n in enumerate(names):
         if n in pinned:
             lower[i], upper[i] = HARD_LIMITS[n.rsplit(".", 1)[1]]
+    space = ParameterSpace(units=space.units, lower=tuple(lower), upper=tuple(upper),
+                           aliases=space.aliases)
+    for path, (low, high) in fields.items():
+        value = get_parameter(model, path, f"bounds.{path}")
+        if not low <= value <= high:
+            raise ModelError(f"bounds.{path}", f"[{low:g}, {high:g}] excludes the starting "
+                             f"model's {path} = {value:g}; allowed: bounds that contain it")
+        space = space.with_bounds(path, low, high, model)
+    start = np.concatenate([start, space.field_values(model)])
+    names = space.names
     chosen = set(names)
     if free:
-        chosen = {n for path in free for n in space.select(path, "free")}
+        chosen = {n for path in free for n in _selected(space, model, path)}
     held = {n: float(start[i]) for i, n in enumerate(names) if n not in chosen}
     for path, value in (frozen or {}).items():
-        for name in space.select(path, "frozen"):
+        for name in _selected(space, model, path, "frozen"):
             held[name] = float(start[names.index(name)]) if value is None else float(value)
-    space = ParameterSpace(units=space.units, lower=tuple(lower), upper=tuple(upper),
-                           frozen={**pinned, **held}, aliases=space.aliases)
+    space = replace(space, frozen={**pinned, **held})
     if space.free.size == 0:
         raise ModelError("free", "every parameter is frozen; allowed: at least one free")
     return space
+
+
+def _selected(space: ParameterSpace, model: ChainModel, path: str,
+              what: str = "free") -> list[str]:
+    """`ParameterSpace.select`, with a model field that has no range named as such."""
+    try:
+        return space.select(path, what)
+    except ModelError:
+        if space.is_field(model, path):
+            raise ModelError(what, f"{path!r} is a model field without a range; allowed: give "
+                             f"it one, --bound {path}=LOW,HIGH") from None
+        raise
 
 
 def apply_timing_errors(x, errors) -> np.ndarray:
@@ -269,9 +301,11 @@ class OptimiseProblem:
             raise TypeError("model: expected a model")
         self.start_model = start
         self.model3 = three_ramps(start)
-        self.x0 = vector([u.activation for u in self.model3.units])
-        self.space = parameter_space(self.model3, self.x0, self.window, self.free,
+        ramps = vector([u.activation for u in self.model3.units])
+        self.space = parameter_space(self.model3, ramps, self.window, self.free,
                                      self.frozen, self.bounds)
+        self.x0 = np.concatenate([ramps, self.space.field_values(self.model3)])
+        self.own_starts = OwnStarts(self.space, self.model3)
         self.choice = None
         if self.step is None:
             self.choice = choose_technique(start, self.accuracy,
@@ -312,8 +346,10 @@ class OptimiseProblem:
         return explicit_muscles(self.method)
 
     def model_for(self, x) -> ChainModel:
-        """The model with the activation ramps of the full parameter vector ``x``."""
-        return with_ramps(self.model3, x, [None] * len(self.model3.units))  # own levels
+        """The model with the activation ramps and the searched fields of the full parameter
+        vector ``x``."""
+        own_levels = [None] * len(self.model3.units)
+        return self.space.with_fields(with_ramps(self.model3, x, own_levels), x)
 
     def trials(self, population) -> list[tuple[Trial | None, str]]:
         """(trial, "") or (None, why it failed) of every row of ``population`` (full
@@ -328,12 +364,19 @@ class OptimiseProblem:
 
     def _chunk(self, rows) -> list[tuple[Trial | None, str]]:
         m, steps = rows.shape[0], self.n_steps + 1
-        states, activations, outputs, status = run_population(
-            rows, self.step_kinds, self.coupling.to_array(), self.y0, self.step, self.n_steps,
-            self.arrays, self.levels, self.explicit_muscles,
-            np.arange(steps if self.ground else 0), activation_steps=steps)
-        model = self.start_model
-        n, nb = model.n_coordinates, model.n_base
+        ground_steps = np.arange(steps if self.ground else 0)
+        if self.space.fields:  # each candidate from its own model's start
+            starts = [self.own_starts(x) for x in rows]
+            states, activations, outputs, status = run_own_models(
+                rows, starts, self.step_kinds, self.coupling.to_array(), self.step,
+                self.n_steps, self.explicit_muscles, ground_steps, activation_steps=steps)
+        else:
+            starts = [None] * m
+            states, activations, outputs, status = run_population(
+                rows, self.step_kinds, self.coupling.to_array(), self.y0, self.step,
+                self.n_steps, self.arrays, self.levels, self.explicit_muscles, ground_steps,
+                activation_steps=steps)
+        n, nb = self.start_model.n_coordinates, self.start_model.n_base
         time = np.arange(steps) * self.step
         result = []
         for j in range(m):
@@ -347,6 +390,7 @@ class OptimiseProblem:
                 ground = {"com_y": com_y, "grf_y": outputs[j, 1],
                           "com_speed_x": np.gradient(com_x, self.step),
                           "com_speed_y": np.gradient(com_y, self.step)}
+            model = self.start_model if starts[j] is None else starts[j].model
             result.append((Trial(time, angles, states[j, :, n + nb:2 * n],
                                  activations[j].T, gravity=model.gravity, **ground), ""))
         return result
