@@ -156,6 +156,11 @@ def test_a_huge_run_is_announced_before_it_starts(tmp_path, capsys, monkeypatch)
     (["--freeze", "elbow.flexor.ramp1.delay=0.1", "--freeze",
       "elbow.flexor.ramp1.delay=0.2"], "--freeze"),
     (["--column", "elbow=time"], "time"),
+    # model fields: one the fit sets itself, a range outside the field's, a misspelt one
+    (["--bound", "elbow.initial_angle=0,1"], "--bound elbow.initial_angle: a fit starts"),
+    (["--bound", "elbow_flexor.se_stiffness=-5,900"],
+     "--bound elbow_flexor.se_stiffness: -5 is out of range; allowed (0, 1e+06]"),
+    (["--bound", "elbow_flexor.se_stifness=200,900"], "or a model field given a range"),
 ])
 def test_fit_options_that_cannot_work_are_one_line_and_leave_no_folder(tmp_path, capsys,
                                                                          extra, field):

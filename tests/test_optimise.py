@@ -238,6 +238,40 @@ def test_a_known_optimum_is_found(curl):
     assert all(e["gain_lost_if_reverted_percent"] > 0 for e in effects)
 
 
+def test_a_model_field_is_searched_from_its_own_start(curl):
+    """A model field given bounds is searched: the flexor's strength T0 in [60, 80] N·m
+    (the model's 75) for the peak flexion speed of the first 0.25 s. Each candidate runs its
+    own model: a value's goal is exactly that of the same start on a model made with it
+    (its flexor's level from its own static equilibrium), it grows with the strength, and
+    the search ends at the upper bound. A value that makes the model invalid (T0 = 88 above
+    a T_max of 101.25: the CE velocity no longer unique) fails with that reason."""
+    from torquesim.model.paths import set_parameter
+
+    path = "elbow_flexor.isometric_torque"
+    short = curl.replace(duration=0.25)
+    goals = goals_of(short, maximise="peak_speed:elbow")
+    problem = OptimiseProblem(short, goals, free=(path,), bounds={path: (60.0, 80.0)},
+                              step=1e-3)
+    assert problem.space.names[-1] == path and problem.space.free.tolist() == [
+        problem.space.size - 1]
+    rows = np.tile(problem.x0, (4, 1))
+    rows[:, -1] = 60.0, 75.0, 80.0, 88.0
+    values, reasons, _ = problem.goal_values(rows)
+    for value, strength in zip(values[:3, 0], (60.0, 75.0, 80.0), strict=True):
+        made = OptimiseProblem(set_parameter(short, path, strength), goals, step=1e-3)
+        assert value == made.goal_values(made.x0)[0][0, 0]
+    assert values[0, 0] < values[1, 0] < values[2, 0]
+    assert values[1, 0] == problem.start_values[0]
+    assert math.isnan(values[3, 0]) and "no valid model" in reasons[3]
+    outcome = optimise_population(problem, OptimiseSettings(generations=20, seed=1))
+    assert problem.space.table(outcome.x)[path] > 79.5
+    assert problem.model_for(outcome.x).units[0].parameters.isometric_torque > 79.5
+    with pytest.raises(ModelError, match="without a range"):
+        OptimiseProblem(short, goals, free=(path,))
+    with pytest.raises(ModelError, match="excludes the starting model's"):
+        OptimiseProblem(short, goals, bounds={path: (76.0, 80.0)})
+
+
 def test_the_robust_score_is_never_above_the_plain_one(curl):
     goals = goals_of(curl, maximise="peak_speed:elbow")
     robust = OptimiseProblem(curl, goals, robust=6, timing_error=0.02)
@@ -393,6 +427,9 @@ def test_a_stop_request_writes_the_best_so_far_and_resume_finishes(tmp_path, cap
      "excludes the starting model's"),
     (["--minimise", "effort", "--freeze", "knee_flexor"], "is not a parameter"),
     (["--minimise", "effort", "--generations", "0"], "0 is not in the range"),
+    (["--minimise", "effort", "--free", "gravity"], "--free: 'gravity' is a model field "
+                                                    "without a range"),
+    (["--minimise", "effort", "--bound", "gravity=0,9"], "excludes the starting model's"),
 ])
 def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv, message):
     out = tmp_path / "o"
