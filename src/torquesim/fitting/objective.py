@@ -254,6 +254,12 @@ class OwnStarts:
         self.space, self.model = space, model
         self.kept: dict[tuple, OwnStart | None] = {}
 
+    def layout(self) -> OwnStart:
+        """The start of ``model`` as it is: the sizes every candidate's start has (numeric
+        fields change no state or unit count)."""
+        return self(np.concatenate([np.zeros(self.space.size - len(self.space.fields)),
+                                    self.space.field_values(self.model)]))
+
     def __call__(self, x) -> OwnStart | None:
         from ..errors import ModelError
 
@@ -274,23 +280,25 @@ class OwnStarts:
         return self.kept[key]
 
 
-def run_own_models(rows, starts, kinds, coupling, step: float, n_steps: int,
+def run_own_models(rows, own_starts, kinds, coupling, step: float, n_steps: int,
                    explicit_muscles: bool, ground_steps, activation_steps: int = 0):
     """`run_population` of candidates each with a model of its own (searched model fields):
-    row j from ``starts[j]`` (`OwnStart`; None: status `RUN_NO_START`), each candidate alone
-    on one of the pool's threads (`_pool`), as many at once as `run_population` runs. Same
-    returns; the same compiled kernel."""
+    row j from its `OwnStart`, ``own_starts(rows[j])`` (`OwnStarts`; None: status
+    `RUN_NO_START`), each candidate alone on one of the pool's threads (`_pool`), as many at
+    once as `run_population` runs, so that making one candidate's start (Python) overlaps
+    the others' runs (compiled, without the GIL). Returns `run_population`'s arrays and the
+    starts; the same compiled kernel."""
     m, steps = rows.shape[0], n_steps + 1
-    y0 = next((s.y0 for s in starts if s is not None), np.zeros(1))
-    n_units = next((s.levels.size for s in starts if s is not None), 0)
-    states = np.empty((m, steps, y0.size))
-    activations = np.empty((m, n_units, activation_steps))
-    outputs = np.zeros((m, len(GROUND_OUTPUTS), steps if len(ground_steps) else 1))
     status = np.full(m, RUN_NO_START, dtype=np.int64)
     ground_steps = np.asarray(ground_steps, dtype=np.int64)
+    layout = own_starts.layout()
+    states = np.empty((m, steps, layout.y0.size))
+    activations = np.empty((m, layout.levels.size, activation_steps))
+    outputs = np.zeros((m, len(GROUND_OUTPUTS), steps if len(ground_steps) else 1))
+    starts = [None] * m
 
     def run(j):
-        start = starts[j]
+        starts[j] = start = own_starts(rows[j])
         if start is None:
             return
         ground = ground_kinds(start.arrays[0], start.arrays[1].shape[0])
@@ -299,7 +307,7 @@ def run_own_models(rows, starts, kinds, coupling, step: float, n_steps: int,
                             ground_steps, (states[j:j + 1], activations[j:j + 1],
                                            outputs[j:j + 1], status[j:j + 1]))
     list(_pool(min(numba.get_num_threads(), m)).map(run, range(m)))  # raises what a run raised
-    return states, activations, outputs, status
+    return states, activations, outputs, status, starts
 
 
 def steps_around(times, step: float, n_steps: int) -> np.ndarray:

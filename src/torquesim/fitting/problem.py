@@ -242,9 +242,8 @@ class FitProblem:
                     self.arrays[1].shape[0], self.terms, out[begin:begin + m],
                     failed[begin:begin + m])
                 continue
-            starts = [self.own_starts(x) for x in rows]
-            states, _, outputs, status = obj.run_own_models(
-                rows, starts, self.step_kinds, self.coupling.to_array(), self.step,
+            states, _, outputs, status, starts = obj.run_own_models(
+                rows, self.own_starts, self.step_kinds, self.coupling.to_array(), self.step,
                 self.n_steps, self.explicit_muscles, self.ground_steps)
             for j, start in enumerate(starts):  # each from its own initial levels
                 k = begin + j

@@ -366,9 +366,8 @@ class OptimiseProblem:
         m, steps = rows.shape[0], self.n_steps + 1
         ground_steps = np.arange(steps if self.ground else 0)
         if self.space.fields:  # each candidate from its own model's start
-            starts = [self.own_starts(x) for x in rows]
-            states, activations, outputs, status = run_own_models(
-                rows, starts, self.step_kinds, self.coupling.to_array(), self.step,
+            states, activations, outputs, status, starts = run_own_models(
+                rows, self.own_starts, self.step_kinds, self.coupling.to_array(), self.step,
                 self.n_steps, self.explicit_muscles, ground_steps, activation_steps=steps)
         else:
             starts = [None] * m
