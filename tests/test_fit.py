@@ -294,6 +294,34 @@ def test_a_fit_recovers_a_tendon_stiffness():
         assert problem.model_for(outcome.x).units[0].parameters.se_stiffness == fitted
 
 
+def test_the_command_fits_a_model_field_and_says_so(tmp_path, capsys):
+    """``fit --bound`` with a model field: the printed summary, fit_summary.json's
+    ``fitted_fields`` and the fitted model file hold the value found (the target made by the
+    fit's technique and step with a 450 N·m/rad tendon); a field that ends at its bound is
+    warned about."""
+    path = "elbow_flexor.se_stiffness"
+    run = ts.simulate(set_parameter(_elbow_with(TRUE_X, 1.5, 20.0), path, 450.0), "imex",
+                      2.5e-3)
+    target = tmp_path / "soft.csv"
+    target.write_text("time,elbow\n" + "".join(f"{float(t)!r},{math.degrees(q)!r}\n" for t, q in
+                                              zip(run.time[::4], run.q[::4, 0], strict=True)))
+    out = tmp_path / "fit"
+    argv = ["fit", "--target", str(target), "--step", "2.5ms", "--starts", "2",
+            "--iterations", "150", "--out", str(out), "--quiet", "--overwrite"]
+    assert main([*argv, "--bound", f"{path}=200,900"]) == 0
+    said = next(line for line in capsys.readouterr().out.splitlines()
+                if line.startswith("fitted"))
+    summary = json.loads((out / "fit_summary.json").read_text())
+    fitted = summary["fitted_fields"][path]
+    assert fitted["value"] == pytest.approx(450.0, rel=1e-6) and fitted["start"] == 600.0
+    assert said == f"fitted        {path} {fitted['value']:.6g} N·m/rad (from 600; bounds 200 " \
+                   "to 900)"
+    assert ts.load_model(str(out / "fitted_model.toml")).units[0].parameters.se_stiffness \
+        == fitted["value"]
+    assert main([*argv, "--bound", f"{path}=500,900"]) == 0
+    assert f"warning: {path} ended at its bound 500" in capsys.readouterr().out
+
+
 # ---------------------------------------------------------------- the fit
 
 @pytest.mark.parametrize("settings", [QUICK, GLOBAL], ids=["least-squares", "global"])

@@ -65,6 +65,11 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
     if fitted.message:  # stability limit broken, or activation ramps not resolved
         warnings.append(fitted.message)
     free = set(problem.space.free.tolist())
+    fields = fitted_fields(problem, outcome)
+    for path, entry in fields.items():
+        if entry["at_bound"]:
+            warnings.append(f"{path} ended at its bound {entry['value']:g} {entry['unit']}: "
+                            "the motion may want a value beyond it; widen its --bound")
     no_channels = {c: (math.inf, math.inf) for c in problem.target.channels}
     own = problem.channel_errors(fitted) if fitted.success else no_channels
     theirs = problem.channel_errors(reference) if reference.success else no_channels
@@ -90,6 +95,7 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         "initial_levels": dict(zip(problem.space.units, problem.levels.tolist(), strict=True)),
         "mean_activation": problem.mean_activations(outcome.x),
         "free_parameters": [n for i, n in enumerate(problem.space.names) if i in free],
+        "fitted_fields": fields,
         "frozen": dict(problem.space.frozen),
         "rms_error_deg": rms, "max_error_deg": max(e[1] for e in errors.values()),
         "reference_rms_error_deg": ref_rms,
@@ -119,6 +125,23 @@ def summarise(problem: FitProblem, outcome: FitOutcome, settings: SearchSettings
         "_results": (fitted, reference),
         "_x": outcome.x,
     }
+
+
+def fitted_fields(problem: FitProblem, outcome: FitOutcome) -> dict:
+    """Each searched model field (`ParameterSpace.fields`): its fitted value, the start's,
+    its SI unit, its bounds, and whether it ended at one (within 0.1 % of the range: the
+    least-squares search approaches a bound from inside)."""
+    from ..model.paths import allowed_at
+
+    space, out = problem.space, {}
+    for path in space.fields:
+        i = space.names.index(path)
+        low, high, value = space.lower[i], space.upper[i], float(outcome.x[i])
+        out[path] = {"value": value, "start": float(outcome.initial_x[i]),
+                     "unit": allowed_at(problem.model, path).unit, "bounds": [low, high],
+                     "at_bound": i in space.free and min(value - low, high - value)
+                     <= 1e-3 * (high - low)}
+    return out
 
 
 def take_off(problem: FitProblem, reference) -> dict | None:
@@ -261,6 +284,9 @@ def summary_lines(summary: dict) -> list[str]:
                                                                for j, v in moving.items())
                                          + " (the target's speed at its first sample)"
                                          if moving else "at rest (the target starts still)"))
+    for path, f in summary.get("fitted_fields", {}).items():
+        lines.append(f"fitted        {path} {f['value']:.6g} {f['unit']} (from {f['start']:.6g}; "
+                     f"bounds {f['bounds'][0]:g} to {f['bounds'][1]:g})")
     lines += [
         "reference     = the fitted model re-simulated with Radau",
         "activation    mean " + ", ".join(f"{u} {a:.3f}"
