@@ -28,6 +28,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from functools import cache
 from typing import NamedTuple
@@ -243,16 +244,25 @@ class OwnStart(NamedTuple):
 
 class OwnStarts:
     """The `OwnStart` of a candidate whose searched model fields (``space.fields``) differ
-    from ``model``'s: ``starts(x)`` for a full parameter vector ``x``, None when its fields
+    from ``model``'s, called with a full parameter vector ``x``; None when its fields
     give no valid model or no static equilibrium (a `ModelError`). The start does not depend
     on the ramps, so it is made once per distinct set of field values (a Jacobian's ramp
-    columns share one; the most recent `MAX_KEPT` are kept)."""
+    columns share one; the most recent `MAX_KEPT` are kept). The population's threads call
+    it at once: one makes a start at a time (making one is Python, which runs one thread at
+    a time anyway). Pickled (to Dask workers) without what it keeps."""
 
     MAX_KEPT = 256
 
     def __init__(self, space, model):
         self.space, self.model = space, model
         self.kept: dict[tuple, OwnStart | None] = {}
+        self.lock = threading.Lock()
+
+    def __getstate__(self) -> dict:
+        return {"space": self.space, "model": self.model}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["space"], state["model"])
 
     def layout(self) -> OwnStart:
         """The start of ``model`` as it is: the sizes every candidate's start has (numeric
@@ -261,9 +271,13 @@ class OwnStarts:
                                     self.space.field_values(self.model)]))
 
     def __call__(self, x) -> OwnStart | None:
+        key = tuple(np.asarray(x, dtype=float)[x.size - len(self.space.fields):].tolist())
+        with self.lock:
+            return self._kept_or_made(key, x)
+
+    def _kept_or_made(self, key: tuple, x) -> OwnStart | None:
         from ..errors import ModelError
 
-        key = tuple(np.asarray(x, dtype=float)[x.size - len(self.space.fields):].tolist())
         if key not in self.kept:
             if len(self.kept) >= self.MAX_KEPT:
                 self.kept.pop(next(iter(self.kept)))
