@@ -441,18 +441,23 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv, messag
 
 def test_the_same_optimum_on_dask_workers(curl):
     """Each generation scored by 2 worker processes (one task per chunk) gives the search
-    that this process's threads give: the same candidates, costs and optimum."""
+    that this process's threads give: the same candidates, costs and optimum; with a
+    searched model field too (each candidate's own start made on the worker)."""
     distributed = pytest.importorskip("distributed")
     settings = OptimiseSettings(generations=4, seed=2)
-    here = ts.optimise(curl, minimise="time_to:elbow=90deg", settings=settings)
+    field = {"bounds": {"elbow_flexor.se_stiffness": (300.0, 900.0)}}
+    here = [ts.optimise(curl, minimise="time_to:elbow=90deg", settings=settings, **kwargs)
+            for kwargs in ({}, field)]
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=":0") as cluster, \
             distributed.Client(cluster) as client:
-        there = ts.optimise(curl, minimise="time_to:elbow=90deg", settings=settings,
-                            client=client)
-    np.testing.assert_array_equal(there.outcome.x, here.outcome.x)
-    assert there.outcome.history == here.outcome.history
-    assert there.outcome.failures == here.outcome.failures
+        there = [ts.optimise(curl, minimise="time_to:elbow=90deg", settings=settings,
+                             client=client, **kwargs) for kwargs in ({}, field)]
+    for a, b in zip(there, here, strict=True):
+        np.testing.assert_array_equal(a.outcome.x, b.outcome.x)
+        assert a.outcome.history == b.outcome.history
+        assert a.outcome.failures == b.outcome.failures
+    assert here[1].outcome.x.size == here[0].outcome.x.size + 1
 
 
 def test_a_goal_the_free_parameters_cannot_move_is_told(curl):

@@ -88,7 +88,9 @@ def optimise(model="builtin:elbow-curl", *, maximise=(), minimise=(),
     ``model``: a `ChainModel`, a model file or ``builtin:NAME``. ``maximise`` / ``minimise``:
     a goal or a list (written forms such as ``"time_to:elbow=90deg"``, `Goal` objects, or
     functions of a `SimulationResult`). ``free``, ``frozen`` (path → value or None for the
-    start's), ``bounds`` (path → (low, high)) and ``window`` say what may move; ``robust``
+    start's), ``bounds`` (path → (low, high); a model field's path is searched too, from
+    the static equilibrium of each candidate's own model) and ``window`` say what may move;
+    ``robust``
     perturbed copies with onset errors in ±``timing_error`` s make the optimum robust.
     ``constrain``: goals held within bounds (``"com_speed_x_at_takeoff=-0.1..0.1"`` or
     `Constraint` objects); ``endstop_depth``: how many end-stop scales a run may go past an
