@@ -70,6 +70,7 @@ def test_activation_ramps_are_paths_and_the_fit_names_them_so(arm):
     ("shoulder_flexor.se_stifness", r"\(closest: shoulder_flexor.se_stiffness, "),
     ("units.elbow_flexor.activation_time_constant", r"\(closest: elbow_flexor.activation_time,"),
     ("base.initial_height", "static equilibrium on its ground contacts"),
+    ("duration", "the run's length is no parameter"),
 ])
 def test_unknown_paths_are_one_clear_error(arm, path, match):
     with pytest.raises(ts.ModelError, match=match) as info:

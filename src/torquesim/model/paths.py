@@ -140,6 +140,10 @@ def limits_at(model: ChainModel, path: str, field: str = "path") -> tuple[float,
 
 
 def _not_a_path(model: ChainModel, path: str, field: str) -> ModelError:
+    if _parts(path) == ["duration"]:
+        return ModelError(field, f"{path!r}: the run's length is no parameter to vary or "
+                          "search (every candidate and sample runs the same steps); allowed: "
+                          "simulate --duration, or the model file's duration")
     if _parts(path)[0] == "base":
         return ModelError(field, f"{path!r}: the base's start is no field; a free base starts "
                           "in static equilibrium on its ground contacts, or at touchdown with "
