@@ -13,6 +13,7 @@ the ramps in the vector, in the order given.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -37,6 +38,10 @@ def parameter_names(units) -> tuple[str, ...]:
     """``UNIT.rampK.FIELD`` for every unit, ramp and field, in vector order."""
     return tuple(f"{unit}.ramp{i + 1}.{name}" for unit in units
                  for i in range(RAMPS_PER_UNIT) for name in RAMP_FIELDS)
+
+
+#: The end of a ramp's parameter path (``UNIT.rampK.FIELD``).
+_RAMP_PATH = re.compile(r"\.ramp\d+\.(" + "|".join(RAMP_FIELDS) + ")$")
 
 
 def _field_of(name: str) -> str:
@@ -194,7 +199,7 @@ class ParameterSpace:
             name = canonical_path(model, path)
         except ModelError:
             return False
-        return name not in parameter_names(self.units) and ".ramp" not in name
+        return name not in parameter_names(self.units) and not _RAMP_PATH.search(name)
 
     def field_values(self, model) -> np.ndarray:
         """The searched fields' values in ``model``, in vector order (SI)."""

@@ -414,8 +414,10 @@ class OptimiseProblem:
         return values, reasons, violations
 
     def _violation(self, trial, x) -> float:
-        """End-stop scales past the allowed depth plus each constraint's violation."""
-        deepest = float(np.max(endstop_depths(self.start_model, trial.angles), initial=-np.inf))
+        """End-stop scales past the allowed depth (the candidate's own stops, when they are
+        searched fields) plus each constraint's violation."""
+        model = self.own_starts(x).model if self.space.fields else self.start_model
+        deepest = float(np.max(endstop_depths(model, trial.angles), initial=-np.inf))
         total = max(deepest - self.endstop_depth, 0.0)
         for constraint in self.constraints:
             goal = constraint.goal
