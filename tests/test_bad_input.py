@@ -161,6 +161,8 @@ def test_a_huge_run_is_announced_before_it_starts(tmp_path, capsys, monkeypatch)
     (["--bound", "elbow_flexor.se_stiffness=-5,900"],
      "--bound elbow_flexor.se_stiffness: -5 is out of range; allowed (0, 1e+06]"),
     (["--bound", "elbow_flexor.se_stifness=200,900"], "or a model field given a range"),
+    (["--freeze", "elbow.initial_angle=0.3"], "--freeze elbow.initial_angle: a fit starts"),
+    (["--freeze", "elbow_flexor.se_stiffness=-3"], "--freeze elbow_flexor.se_stiffness: -3"),
 ])
 def test_fit_options_that_cannot_work_are_one_line_and_leave_no_folder(tmp_path, capsys,
                                                                          extra, field):

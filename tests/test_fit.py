@@ -320,6 +320,12 @@ def test_the_command_fits_a_model_field_and_says_so(tmp_path, capsys):
         == fitted["value"]
     assert main([*argv, "--bound", f"{path}=500,900"]) == 0
     assert f"warning: {path} ended at its bound 500" in capsys.readouterr().out
+    # held (--freeze) instead: the fit runs on the model with that value, which it writes
+    assert main([*argv, "--freeze", f"{path}=450"]) == 0
+    summary = json.loads((out / "fit_summary.json").read_text())
+    assert summary["fitted_fields"] == {} and summary["objective_deg"] < 1e-6
+    assert ts.load_model(str(out / "fitted_model.toml")).units[0].parameters.se_stiffness \
+        == 450.0
 
 
 # ---------------------------------------------------------------- the fit

@@ -914,7 +914,8 @@ def _search_folder(out_dir: str, resume: bool, overwrite: bool, files, what: str
                    "field too, from the model's value: toe.stiffness=1e6,1e7, "
                    "elbow_flexor.se_stiffness=300,900 (see torquesim model NAME --paths).")
 @click.option("--freeze", "frozen", multiple=True, metavar="NAME=VALUE",
-              help="Hold a parameter fixed (repeatable), e.g. elbow.extensor.ramp1.level=0.1.")
+              help="Hold a parameter fixed (repeatable), e.g. elbow.extensor.ramp1.level=0.1; "
+                   "a model field's path holds that field at VALUE (SI) in the fitted model.")
 @click.option("--weight", "joint_weights", multiple=True, metavar="JOINT=W",
               help="Weight of a joint's angle error (repeatable; default 1 each, normalised).")
 @click.option("--weight-velocity", type=float, default=0.0, show_default=True,
@@ -965,6 +966,7 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
     )
     from .fitting.fit import load_checkpoint
     from .fitting.outputs import CHECKPOINT_FILE, FIT_FILES, fit_and_write, summary_lines
+    from .fitting.problem import held_field
     from .fitting.target import BUILTIN_TARGETS
     from .io.model_file import load_model
 
@@ -1021,7 +1023,12 @@ def fit(target_spec, columns, map_spec, forces_path, lab_axes, grf_cutoff, grf_c
         for name, (low, high) in _parse_assignments(bounds, "--bound", 2).items():
             space = space.with_bounds(name, low, high, base)
         for name, (value,) in _parse_assignments(frozen, "--freeze", 1).items():
-            space = space.with_frozen(name, value)
+            try:
+                space = space.with_frozen(name, value)
+            except ModelError:
+                if not space.is_field(base, name):
+                    raise
+                base = held_field(base, name, value)  # a model field held, not fitted
     except ModelError as exc:
         raise _as_option(exc, {"freeze": "--freeze", "bound": "--bound",
                                "bounds": "--bound"}) from None
@@ -1258,7 +1265,9 @@ def _strength_unit(model, unit_name, trials, units, torque_sign):
                    "field given a --bound.")
 @click.option("--freeze", "frozen", multiple=True, metavar="PATH[=VALUE]",
               help="Hold a unit, a ramp or a parameter (repeatable) at its start value or at "
-                   "VALUE, e.g. elbow_extensor or elbow_flexor.ramp1.level=0.6.")
+                   "VALUE, e.g. elbow_extensor or elbow_flexor.ramp1.level=0.6; a model "
+                   "field's path at VALUE (SI) sets it in the start, which gains are measured "
+                   "from.")
 @click.option("--bound", "bounds", multiple=True, metavar="PATH=LOW,HIGH",
               help="Bounds replacing the window (repeatable; s for delays and durations), "
                    "e.g. elbow_flexor.ramp1.level=0,1; they must contain the start value. A "

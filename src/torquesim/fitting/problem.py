@@ -10,6 +10,7 @@ import numpy as np
 from ..errors import ModelError, check_range
 from ..model.activation import activation
 from ..model.chain import ChainModel, as_chain
+from ..model.paths import set_parameter
 from ..model.presets import preset
 from ..solvers import fixed_step as fs
 from ..solvers import step_loop
@@ -39,6 +40,20 @@ FITTED_ELSEWHERE = {"initial_angle": "a fit starts each joint at its target's fi
                     "initial_speed": "a fit starts each joint at its target's first speed",
                     "initial_level": "a fit starts each unit at its rest level (--rest-level) "
                                      "or at static equilibrium"}
+
+
+def held_field(model: ChainModel, path: str, value: float) -> ChainModel:
+    """``model`` with the model field at ``path`` held at ``value`` for a fit (``--freeze``
+    of a field that is not fitted); a field the fit sets itself (`FITTED_ELSEWHERE`) or a
+    value the model does not allow is a `ModelError` on ``freeze.PATH``."""
+    why = FITTED_ELSEWHERE.get(path.rpartition(".")[2])
+    if why:
+        raise ModelError(f"freeze.{path}", f"{why}; allowed: a field the fit leaves to the "
+                         "model (torquesim model NAME --paths)")
+    try:
+        return set_parameter(model, path, value)
+    except ModelError as exc:
+        raise ModelError(f"freeze.{path}", exc.reason) from None
 
 
 def default_step(model) -> float:

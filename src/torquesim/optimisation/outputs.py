@@ -16,7 +16,7 @@ from ..io.model_file import save_model
 from ..io.provenance import provenance
 from ..io.tables import write_table
 from .goals import Trial
-from .problem import OptimiseProblem, endstop_depths
+from .problem import INFEASIBLE_COST, OptimiseProblem, endstop_depths
 from .search import OptimiseOutcome, OptimiseSettings
 
 MODEL_FILE = "optimised_model.toml"
@@ -74,6 +74,10 @@ def summarise(problem: OptimiseProblem, outcome: OptimiseOutcome,
             warnings.append(f"the gain in {g.label} does not hold when the optimum is "
                             "re-simulated with the reference solver: it leans on the "
                             "integrator's error; use a smaller --step")
+    if outcome.start_cost >= INFEASIBLE_COST > outcome.cost:
+        warnings.append("the start is infeasible (past an end stop beyond --endstop-depth, or "
+                        "a --constrain outside its bounds): the optimum is the best feasible "
+                        "candidate, and its goals may be worse than the start's")
     if np.array_equal(outcome.x, outcome.start_x):
         failed = sum(outcome.failures.values())
         warnings.append(f"no candidate beat the start in {outcome.generations_done} "

@@ -56,7 +56,7 @@ from ..fitting.parameters import (
 )
 from ..fitting.problem import DEFAULT_METHOD, default_step, fit_step
 from ..model.chain import ChainModel, as_chain
-from ..model.paths import get_parameter
+from ..model.paths import get_parameter, set_parameter
 from ..solvers import step_loop
 from ..solvers.choice import choose_technique
 from ..solvers.techniques import (
@@ -240,7 +240,8 @@ class OptimiseProblem:
         jumped). Bounds (0, π].
     window : Window
     free, frozen, bounds
-        What may move (module docstring).
+        What may move (module docstring). A model field ``frozen`` at a value without a
+        range in ``bounds`` is set to it in the start (which the gains are measured from).
     robust : int
         Perturbed copies per candidate (0: the plain optimum). Bounds [0, 1000].
     timing_error : float
@@ -299,11 +300,21 @@ class OptimiseProblem:
                          else preset("builtin:elbow-curl"))
         if not isinstance(start, ChainModel):
             raise TypeError("model: expected a model")
+        frozen = dict(self.frozen or {})
+        for path, value in list(frozen.items()):  # a model field held, not searched
+            if path not in (self.bounds or {}) and ParameterSpace.for_model(start).is_field(
+                    start, path):
+                del frozen[path]
+                if value is not None:
+                    try:
+                        start = set_parameter(start, path, value)
+                    except ModelError as exc:
+                        raise ModelError(f"frozen.{path}", exc.reason) from None
         self.start_model = start
         self.model3 = three_ramps(start)
         ramps = vector([u.activation for u in self.model3.units])
-        self.space = parameter_space(self.model3, ramps, self.window, self.free,
-                                     self.frozen, self.bounds)
+        self.space = parameter_space(self.model3, ramps, self.window, self.free, frozen,
+                                     self.bounds)
         self.x0 = np.concatenate([ramps, self.space.field_values(self.model3)])
         self.own_starts = OwnStarts(self.space, self.model3)
         self.choice = None
