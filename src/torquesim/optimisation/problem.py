@@ -301,9 +301,9 @@ class OptimiseProblem:
         if not isinstance(start, ChainModel):
             raise TypeError("model: expected a model")
         frozen = dict(self.frozen or {})
+        ramps_only = ParameterSpace.for_model(start)
         for path, value in list(frozen.items()):  # a model field held, not searched
-            if path not in (self.bounds or {}) and ParameterSpace.for_model(start).is_field(
-                    start, path):
+            if path not in (self.bounds or {}) and ramps_only.is_field(start, path):
                 del frozen[path]
                 if value is not None:
                     try:
